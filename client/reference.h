@@ -1,0 +1,35 @@
+// dmmr-reference: the brute-force ground truth. Renders every frame of a
+// walkthrough in one process, every object, no culling at all, with the
+// drawing code the clients use.
+#pragma once
+
+#include <string>
+
+#include "gl_context.h"
+
+namespace dmmr {
+
+// Image and camera settings every renderer of a run must share.
+struct ViewOptions {
+  int width = 1024;
+  int height = 1024;
+  double fovy_deg = 45;
+  double near = 0;  // 0: defaultNear(scene)
+};
+
+struct ReferenceOptions {
+  std::string scene;
+  std::string walkthrough;
+  std::string out;    // frames land here as frame_NNNNNN.png
+  std::string stats;  // optional CSV: frame, frame_ms, draw_ms, objects, triangles
+  ViewOptions view;
+  ContextOptions context;
+  bool progress = true;
+};
+
+// Throws Error on bad input; frames already written stay on disk.
+void runReference(const ReferenceOptions& opts);
+
+std::string frameFileName(size_t frame);  // "frame_000042.png"
+
+}  // namespace dmmr

@@ -1,0 +1,56 @@
+#include "atomic_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+
+#include "error.h"
+
+namespace dmmr {
+
+void writeFileAtomic(const std::string& path, std::string_view bytes) {
+  std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(fileError(path, std::string("cannot create: ") + std::strerror(errno)));
+  const char* p = bytes.data();
+  size_t left = bytes.size();
+  while (left > 0) {
+    ssize_t n = ::write(fd, p, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      int e = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      throw Error(fileError(path, std::string("write failed: ") + std::strerror(e)));
+    }
+    p += n;
+    left -= size_t(n);
+  }
+  if (::close(fd) != 0 || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    int e = errno;
+    ::unlink(tmp.c_str());
+    throw Error(fileError(path, std::string("cannot finish writing: ") + std::strerror(e)));
+  }
+}
+
+void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes) {
+  writeFileAtomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+std::vector<uint8_t> readFileBytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  if (!f) throw Error(fileError(path, "cannot open"));
+  std::streamoff size = f.tellg();
+  if (size < 0) throw Error(fileError(path, "cannot read size"));
+  std::vector<uint8_t> data(static_cast<size_t>(size));
+  f.seekg(0);
+  if (size > 0 && !f.read(reinterpret_cast<char*>(data.data()), size))
+    throw Error(fileError(path, "read failed"));
+  return data;
+}
+
+}  // namespace dmmr

@@ -1,0 +1,43 @@
+// The camera every renderer shares: a perspective view with reversed-Z and an
+// infinite far plane, so depth precision holds from centimetres to kilometres.
+#pragma once
+
+#include <array>
+
+#include "math.h"
+#include "walkthrough.h"
+
+namespace dmmr {
+
+struct Camera {
+  Vec3d eye;
+  Quatd rotation;        // camera-to-world rotation (looks down local -Z)
+  double fovy_deg = 45;  // vertical field of view
+  double aspect = 1;     // width / height
+  double near = 0.1;     // near plane distance (> 0)
+  friend bool operator==(const Camera&, const Camera&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const Camera& c);
+
+// Camera rotation only (no translation): world-to-eye for directions. The
+// translation stays separate so that object positions can be made camera
+// relative in double before any float conversion.
+Mat4d viewRotation(const Camera& c);
+// Full world-to-eye matrix.
+Mat4d viewMatrix(const Camera& c);
+// Reversed-Z infinite perspective for a [0,1] clip range (glClipControl
+// GL_ZERO_TO_ONE): depth = near / distance, 1 at the near plane, 0 at infinity.
+Mat4d projectionMatrix(const Camera& c);
+
+// World-space frustum planes (left, right, bottom, top, near); the far plane is
+// at infinity and omitted. Points on the inside have distance >= 0.
+std::array<Plane, 5> frustumPlanes(const Camera& c);
+
+}  // namespace dmmr
+
+namespace dmmr {
+// The camera for one walkthrough control point and an image size.
+inline Camera cameraAt(const ControlPoint& p, int width, int height, double fovy_deg, double near) {
+  return Camera{p.position, p.rotation, fovy_deg, double(width) / double(height), near};
+}
+}  // namespace dmmr

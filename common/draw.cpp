@@ -1,0 +1,249 @@
+#include "draw.h"
+
+#include <string>
+
+#include "error.h"
+
+namespace dmmr {
+
+namespace {
+
+const char* kVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_nrm;
+layout(location = 2) in vec4 a_col;
+layout(location = 3) in vec2 a_uv;
+uniform mat4 u_mv;
+uniform mat4 u_proj;
+uniform mat3 u_nrm;
+out vec3 v_eye;
+out vec3 v_nrm;
+out vec4 v_col;
+out vec2 v_uv;
+void main() {
+  vec4 e = u_mv * vec4(a_pos, 1.0);
+  v_eye = e.xyz;
+  v_nrm = u_nrm * a_nrm;
+  v_col = a_col;
+  v_uv = a_uv;
+  gl_Position = u_proj * e;
+}
+)";
+
+// Two-sided headlight shading. Without normals, the facet normal comes from
+// screen-space derivatives of the eye position (flat shading).
+const char* kFragmentShader = R"(#version 450 core
+uniform vec4 u_diffuse;
+uniform int u_has_texture;
+uniform sampler2D u_tex;
+in vec3 v_eye;
+in vec3 v_nrm;
+in vec4 v_col;
+in vec2 v_uv;
+out vec4 o_color;
+void main() {
+  // Meshes without normals get (0,0,0) and fall back to the facet normal.
+  vec3 n = dot(v_nrm, v_nrm) > 1e-12 ? v_nrm : cross(dFdx(v_eye), dFdy(v_eye));
+  float ln = length(n);
+  n = ln > 0.0 ? n / ln : vec3(0.0, 0.0, 1.0);
+  float le = length(v_eye);
+  vec3 v = le > 0.0 ? -v_eye / le : vec3(0.0, 0.0, 1.0);
+  float lambert = abs(dot(n, v));
+  vec4 base = u_diffuse * v_col;
+  if (u_has_texture != 0) base *= texture(u_tex, v_uv);
+  o_color = vec4(base.rgb * (0.3 + 0.7 * lambert), 1.0);
+}
+)";
+
+GLuint compile(const GlApi& gl, GLenum type, const char* src) {
+  GLuint s = gl.CreateShader(type);
+  gl.ShaderSource(s, 1, &src, nullptr);
+  gl.CompileShader(s);
+  GLint ok = 0;
+  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
+    gl.DeleteShader(s);
+    throw Error(std::string("shader compile failed: ") + log);
+  }
+  return s;
+}
+
+void toFloat(const Mat4d& m, float out[16]) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) out[c * 4 + r] = float(m.at(r, c));
+}
+
+}  // namespace
+
+Renderer::Renderer(const GlApi& gl, int width, int height)
+    : gl_(gl), width_(width), height_(height) {
+  if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+    throw Error("image size " + std::to_string(width) + "x" + std::to_string(height) +
+                " out of range (1 to 16384)");
+  gl_.GenFramebuffers(1, &fbo_);
+  gl_.GenRenderbuffers(1, &color_rb_);
+  gl_.GenRenderbuffers(1, &depth_rb_);
+  gl_.BindRenderbuffer(GL_RENDERBUFFER, color_rb_);
+  gl_.RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
+  gl_.BindRenderbuffer(GL_RENDERBUFFER, depth_rb_);
+  gl_.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, width, height);
+  gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  gl_.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb_);
+  gl_.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb_);
+  if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw Error("the frame's framebuffer is incomplete");
+
+  GLuint vs = compile(gl_, GL_VERTEX_SHADER, kVertexShader);
+  GLuint fs = compile(gl_, GL_FRAGMENT_SHADER, kFragmentShader);
+  program_ = gl_.CreateProgram();
+  gl_.AttachShader(program_, vs);
+  gl_.AttachShader(program_, fs);
+  gl_.LinkProgram(program_);
+  gl_.DeleteShader(vs);
+  gl_.DeleteShader(fs);
+  GLint ok = 0;
+  gl_.GetProgramiv(program_, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    gl_.GetProgramInfoLog(program_, sizeof log, nullptr, log);
+    throw Error(std::string("shader link failed: ") + log);
+  }
+  u_mv_ = gl_.GetUniformLocation(program_, "u_mv");
+  u_proj_ = gl_.GetUniformLocation(program_, "u_proj");
+  u_nrm_ = gl_.GetUniformLocation(program_, "u_nrm");
+  u_diffuse_ = gl_.GetUniformLocation(program_, "u_diffuse");
+  u_has_texture_ = gl_.GetUniformLocation(program_, "u_has_texture");
+  u_tex_ = gl_.GetUniformLocation(program_, "u_tex");
+
+  gl_.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  gl_.Enable(GL_DEPTH_TEST);
+  gl_.DepthFunc(GL_GREATER);
+  gl_.Enable(GL_SCISSOR_TEST);
+  gl_.Viewport(0, 0, width_, height_);
+  gl_.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl_.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  gl_.check("renderer setup");
+}
+
+Renderer::~Renderer() {
+  gl_.DeleteProgram(program_);
+  gl_.DeleteRenderbuffers(1, &color_rb_);
+  gl_.DeleteRenderbuffers(1, &depth_rb_);
+  gl_.DeleteFramebuffers(1, &fbo_);
+}
+
+GpuMesh Renderer::upload(const GeometryData& g) {
+  GpuMesh m;
+  m.has_normals = !g.normals.empty();
+  m.submeshes = g.submeshes;
+  m.triangles = g.triangleCount();
+  gl_.GenVertexArrays(1, &m.vao);
+  gl_.BindVertexArray(m.vao);
+  gl_.GenBuffers(5, m.buffers);
+  auto attrib = [&](int slot, const void* data, size_t bytes, GLint comps, GLenum type,
+                    GLboolean norm) {
+    if (bytes == 0) return;
+    gl_.BindBuffer(GL_ARRAY_BUFFER, m.buffers[slot]);
+    gl_.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(bytes), data, GL_STATIC_DRAW);
+    gl_.VertexAttribPointer(slot, comps, type, norm, 0, nullptr);
+    gl_.EnableVertexAttribArray(slot);
+    m.bytes += bytes;
+  };
+  attrib(0, g.positions.data(), g.positions.size() * 4, 3, GL_FLOAT, GL_FALSE);
+  attrib(1, g.normals.data(), g.normals.size() * 4, 3, GL_FLOAT, GL_FALSE);
+  attrib(2, g.colors.data(), g.colors.size(), 4, GL_UNSIGNED_BYTE, GL_TRUE);
+  attrib(3, g.texcoords.data(), g.texcoords.size() * 4, 2, GL_FLOAT, GL_FALSE);
+  gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, m.buffers[4]);
+  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(g.indices.size() * 4), g.indices.data(),
+                 GL_STATIC_DRAW);
+  m.bytes += g.indices.size() * 4;
+  gl_.BindVertexArray(0);
+  gl_.check("geometry upload");
+  return m;
+}
+
+void Renderer::release(GpuMesh& m) {
+  gl_.DeleteBuffers(5, m.buffers);
+  gl_.DeleteVertexArrays(1, &m.vao);
+  m = GpuMesh{};
+}
+
+GLuint Renderer::uploadTexture(const TextureData& t) {
+  GLuint id = 0;
+  gl_.GenTextures(1, &id);
+  gl_.BindTexture(GL_TEXTURE_2D, id);
+  gl_.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, GLsizei(t.width), GLsizei(t.height), 0, GL_RGBA,
+                 GL_UNSIGNED_BYTE, t.rgba.data());
+  gl_.GenerateMipmap(GL_TEXTURE_2D);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, t.repeat_s ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, t.repeat_t ? GL_REPEAT : GL_CLAMP_TO_EDGE);
+  gl_.check("texture upload");
+  return id;
+}
+
+void Renderer::releaseTexture(GLuint id) { gl_.DeleteTextures(1, &id); }
+
+void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
+  camera_ = camera;
+  view_rotation_ = viewRotation(camera);
+  gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  gl_.Viewport(0, 0, width_, height_);
+  gl_.Scissor(region.x, region.y, region.w, region.h);
+  gl_.DepthMask(GL_TRUE);
+  gl_.ClearColor(bg.r, bg.g, bg.b, 1.f);
+  gl_.ClearDepth(0.0);
+  gl_.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  gl_.UseProgram(program_);
+  float proj[16];
+  toFloat(projectionMatrix(camera), proj);
+  gl_.UniformMatrix4fv(u_proj_, 1, GL_FALSE, proj);
+  gl_.Uniform1i(u_tex_, 0);
+  gl_.VertexAttrib4f(1, 0.f, 0.f, 0.f, 0.f);  // used when a mesh has no normals
+  gl_.VertexAttrib4f(2, 1.f, 1.f, 1.f, 1.f);  // ... no colours
+  gl_.VertexAttrib4f(3, 0.f, 0.f, 0.f, 1.f);  // ... no texture coordinates
+}
+
+void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,
+                    const std::vector<GLuint>& textures) {
+  // Camera-relative in double: subtract the eye from the object's translation
+  // before anything becomes float, so far-away scenes keep their precision.
+  Mat4d rel = object_to_world;
+  for (int i = 0; i < 3; ++i) rel.at(i, 3) -= camera_.eye[i];
+  Mat4d mv = view_rotation_ * rel;
+  Mat4d inv;
+  float mvf[16], nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  toFloat(mv, mvf);
+  if (invertAffine(mv, &inv))  // normal matrix = inverse transpose of the 3x3
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r) nrm[c * 3 + r] = float(inv.at(c, r));
+  gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
+  gl_.UniformMatrix3fv(u_nrm_, 1, GL_FALSE, nrm);
+  gl_.BindVertexArray(mesh.vao);
+  for (const SubMesh& s : mesh.submeshes) {
+    bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();
+    gl_.Uniform4fv(u_diffuse_, 1, s.diffuse);
+    gl_.Uniform1i(u_has_texture_, tex ? 1 : 0);
+    if (tex) {
+      gl_.ActiveTexture(GL_TEXTURE0);
+      gl_.BindTexture(GL_TEXTURE_2D, textures[size_t(s.texture)]);
+    }
+    gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+  }
+  gl_.BindVertexArray(0);
+}
+
+void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
+  rgba->resize(size_t(region.area()) * 4);
+  gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_RGBA, GL_UNSIGNED_BYTE, rgba->data());
+  gl_.check("readPixels");
+}
+
+void Renderer::finish() { gl_.Finish(); }
+
+}  // namespace dmmr

@@ -1,0 +1,70 @@
+// The drawing code shared by dmmr-reference and the clients, so that both
+// produce the same pixels for the same objects.
+//
+// Every frame is drawn with the full frame's viewport and projection; a
+// region is restricted with a scissor rectangle only. On llvmpipe this
+// reproduces the full render exactly, where an off-axis sub-frustum does not.
+// Depth is reversed-Z into a 32-bit float buffer (GL_GREATER, cleared to 0),
+// with an infinite far plane. Object transforms are composed with the camera
+// in double precision and made camera-relative before the float conversion.
+// Objects are drawn in ascending object index by callers so that depth ties
+// resolve the same way whatever subset a renderer draws.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "camera.h"
+#include "formats.h"
+#include "gl_api.h"
+
+namespace dmmr {
+
+struct GpuMesh {
+  GLuint vao = 0;
+  GLuint buffers[5] = {};  // positions, normals, colors, texcoords, indices
+  bool has_normals = false;
+  std::vector<SubMesh> submeshes;
+  uint64_t bytes = 0;      // GPU memory held (buffers only)
+  uint64_t triangles = 0;
+};
+
+struct Rgb {
+  float r = 0.2f, g = 0.22f, b = 0.26f;
+};
+
+class Renderer {
+ public:
+  // Needs a current GL 4.5 context; creates the frame's FBO and the program.
+  Renderer(const GlApi& gl, int width, int height);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+  GpuMesh upload(const GeometryData& g);
+  void release(GpuMesh& m);
+  GLuint uploadTexture(const TextureData& t);
+  void releaseTexture(GLuint id);
+
+  // Clears `region` (colour and depth) and sets the camera for the draws that
+  // follow. The viewport is always the full frame; `region` is the scissor.
+  void beginFrame(const Camera& camera, const Rect& region, Rgb background = {});
+  // Draws one object; `textures` maps texture file indices to GL names.
+  void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);
+  // Reads `region` as RGBA8, bottom row first (GL order).
+  void readPixels(const Rect& region, std::vector<uint8_t>* rgba);
+  void finish();
+
+ private:
+  const GlApi& gl_;
+  int width_, height_;
+  GLuint fbo_ = 0, color_rb_ = 0, depth_rb_ = 0, program_ = 0;
+  GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
+  Camera camera_;
+  Mat4d view_rotation_;
+};
+
+}  // namespace dmmr

@@ -1,0 +1,400 @@
+#include "formats.h"
+
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+namespace dmmr {
+
+namespace {
+
+constexpr FileKind kBoundsKind{"DMMRBNDS", 1, "bounds"};
+constexpr FileKind kSkeletonKind{"DMMRSKEL", 1, "skeleton"};
+constexpr FileKind kOccludersKind{"DMMROCCL", 1, "occluders"};
+constexpr FileKind kGeometryKind{"DMMRGEOM", 1, "geometry"};
+constexpr FileKind kTextureKind{"DMMRTEXR", 1, "texture"};
+
+enum GeometryFlags : uint8_t { kHasNormals = 1, kHasColors = 2, kHasTexcoords = 4, kIndex16 = 8 };
+constexpr uint32_t kMaxTextureSide = 16384;
+
+void putVec(ByteWriter& w, Vec3d v) {
+  w.f64(v.x);
+  w.f64(v.y);
+  w.f64(v.z);
+}
+Vec3d getVec(ByteReader& r, const char* field) {
+  Vec3d v;
+  v.x = r.f64(field);
+  v.y = r.f64(field);
+  v.z = r.f64(field);
+  if (!isFinite(v)) r.fail(std::string(field) + " is not finite");
+  return v;
+}
+void putBox(ByteWriter& w, const Box3d& b) {
+  putVec(w, b.lo);
+  putVec(w, b.hi);
+}
+Box3d getBox(ByteReader& r, const char* field) {
+  Box3d b;
+  b.lo = getVec(r, field);
+  b.hi = getVec(r, field);
+  if (!b.valid()) r.fail(std::string(field) + " has min greater than max");
+  return b;
+}
+
+ByteReader payloadReader(const FileKind& kind, const std::vector<uint8_t>& file,
+                         const std::string& path) {
+  auto [p, n] = openContainer(kind, file, path);
+  return ByteReader(p, n, path);
+}
+
+std::string at(const char* what, size_t i) { return std::string(what) + " " + std::to_string(i); }
+
+}  // namespace
+
+std::string geometryFileName(uint32_t index) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "geometry/%06u.bin", index);
+  return buf;
+}
+std::string textureFileName(uint32_t index) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "textures/%06u.bin", index);
+  return buf;
+}
+
+// ---- bounds ---------------------------------------------------------------
+
+std::vector<uint8_t> encodeBounds(const std::vector<ObjectBounds>& objects) {
+  ByteWriter w;
+  w.u32(uint32_t(objects.size()));
+  for (const auto& o : objects) {
+    w.u32(o.geometry);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) w.f64(o.transform.at(r, c));
+    putVec(w, o.sphere.center);
+    w.f64(o.sphere.radius);
+    putBox(w, o.box);
+    w.u8(o.use_box ? 1 : 0);
+    w.u64(o.weight);
+  }
+  return wrapContainer(kBoundsKind, w.bytes());
+}
+
+std::vector<ObjectBounds> decodeBounds(const std::vector<uint8_t>& file, const std::string& path) {
+  ByteReader r = payloadReader(kBoundsKind, file, path);
+  uint32_t n = r.u32("object count");
+  constexpr size_t kRecord = 4 + 12 * 8 + 4 * 8 + 6 * 8 + 1 + 8;
+  if (n > r.remaining() / kRecord) r.fail("truncated: object count exceeds the file");
+  std::vector<ObjectBounds> out(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    ObjectBounds& o = out[i];
+    o.geometry = r.u32("geometry index");
+    o.transform = Mat4d::identity();
+    for (int row = 0; row < 3; ++row)
+      for (int c = 0; c < 4; ++c) {
+        o.transform.at(row, c) = r.f64("transform");
+        if (!std::isfinite(o.transform.at(row, c))) r.fail(at("object", i) + ": transform not finite");
+      }
+    o.sphere.center = getVec(r, "sphere centre");
+    o.sphere.radius = r.f64("sphere radius");
+    if (!(o.sphere.radius >= 0) || !std::isfinite(o.sphere.radius))
+      r.fail(at("object", i) + ": bad sphere radius");
+    o.box = getBox(r, "box");
+    uint8_t ub = r.u8("volume kind");
+    if (ub > 1) r.fail(at("object", i) + ": volume kind must be 0 or 1");
+    o.use_box = ub == 1;
+    o.weight = r.u64("weight");
+  }
+  r.finish();
+  return out;
+}
+
+// ---- skeleton -------------------------------------------------------------
+
+std::vector<uint8_t> encodeSkeleton(const std::vector<SkeletonNode>& nodes) {
+  ByteWriter w;
+  w.u32(uint32_t(nodes.size()));
+  for (const auto& n : nodes) {
+    w.u8(uint8_t(n.kind));
+    w.u32(n.parent);
+    w.u32(n.end);
+    w.u32(n.object);
+    w.u8(n.box.valid() ? 1 : 0);
+    if (n.box.valid()) putBox(w, n.box);
+    w.str(n.name);
+  }
+  return wrapContainer(kSkeletonKind, w.bytes());
+}
+
+std::vector<SkeletonNode> decodeSkeleton(const std::vector<uint8_t>& file,
+                                         const std::string& path) {
+  ByteReader r = payloadReader(kSkeletonKind, file, path);
+  uint32_t n = r.u32("node count");
+  if (n == 0) r.fail("skeleton has no nodes");
+  if (n > r.remaining() / 18) r.fail("truncated: node count exceeds the file");
+  std::vector<SkeletonNode> nodes(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    SkeletonNode& s = nodes[i];
+    uint8_t kind = r.u8("node kind");
+    if (kind > 2) r.fail(at("node", i) + ": unknown kind " + std::to_string(kind));
+    s.kind = NodeKind(kind);
+    s.parent = r.u32("parent");
+    s.end = r.u32("subtree end");
+    s.object = r.u32("object");
+    uint8_t hasBox = r.u8("box flag");
+    if (hasBox > 1) r.fail(at("node", i) + ": box flag must be 0 or 1");
+    if (hasBox) s.box = getBox(r, "node box");
+    s.name = r.str("name", 4096);
+    // Structure: pre-order, parents before children, subtrees nested.
+    if (i == 0 ? s.parent != kNone : (s.parent >= i || i >= nodes[s.parent].end))
+      r.fail(at("node", i) + ": parent " + std::to_string(s.parent) + " is not an enclosing node");
+    if (s.end <= i || s.end > n || (i > 0 && s.end > nodes[s.parent].end))
+      r.fail(at("node", i) + ": subtree end " + std::to_string(s.end) + " out of range");
+    if (i > 0 && nodes[s.parent].kind == NodeKind::Object)
+      r.fail(at("node", i) + ": an object node cannot have children");
+    if ((s.kind == NodeKind::Object) != (s.object != kNone))
+      r.fail(at("node", i) + ": object index present exactly on object nodes");
+    if (s.kind == NodeKind::Object && s.end != i + 1)
+      r.fail(at("node", i) + ": object node with children");
+  }
+  if (nodes[0].end != n) r.fail("root does not span all nodes");
+  r.finish();
+  return nodes;
+}
+
+// ---- occluders ------------------------------------------------------------
+
+std::vector<uint8_t> encodeOccluders(const std::vector<uint32_t>& objects) {
+  ByteWriter w;
+  w.u32(uint32_t(objects.size()));
+  w.array(objects.data(), objects.size());
+  return wrapContainer(kOccludersKind, w.bytes());
+}
+
+std::vector<uint32_t> decodeOccluders(const std::vector<uint8_t>& file, const std::string& path) {
+  ByteReader r = payloadReader(kOccludersKind, file, path);
+  std::vector<uint32_t> out;
+  r.array(&out, r.u32("occluder count"), "occluder indices");
+  for (size_t i = 1; i < out.size(); ++i)
+    if (out[i] <= out[i - 1]) r.fail("occluder indices are not strictly increasing at entry " +
+                                     std::to_string(i));
+  r.finish();
+  return out;
+}
+
+// ---- geometry -------------------------------------------------------------
+
+std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
+  size_t nv = g.vertexCount();
+  DMMR_CHECK(g.positions.size() == nv * 3);
+  DMMR_CHECK(g.normals.empty() || g.normals.size() == nv * 3);
+  DMMR_CHECK(g.colors.empty() || g.colors.size() == nv * 4);
+  DMMR_CHECK(g.texcoords.empty() || g.texcoords.size() == nv * 2);
+  bool idx16 = nv <= 65536;
+  ByteWriter w;
+  w.u8(uint8_t(Encoding::Float32));
+  w.u8((g.normals.empty() ? 0 : kHasNormals) | (g.colors.empty() ? 0 : kHasColors) |
+       (g.texcoords.empty() ? 0 : kHasTexcoords) | (idx16 ? kIndex16 : 0));
+  w.u32(uint32_t(nv));
+  w.u32(uint32_t(g.indices.size()));
+  w.u32(uint32_t(g.submeshes.size()));
+  for (const auto& s : g.submeshes) {
+    w.u32(s.first_index);
+    w.u32(s.index_count);
+    w.array(s.diffuse, 4);
+    w.i32(s.texture);
+  }
+  w.array(g.positions.data(), g.positions.size());
+  w.array(g.normals.data(), g.normals.size());
+  w.array(g.colors.data(), g.colors.size());
+  w.array(g.texcoords.data(), g.texcoords.size());
+  if (idx16) {
+    std::vector<uint16_t> small(g.indices.begin(), g.indices.end());
+    w.array(small.data(), small.size());
+  } else {
+    w.array(g.indices.data(), g.indices.size());
+  }
+  return wrapContainer(kGeometryKind, w.bytes());
+}
+
+GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string& path) {
+  ByteReader r = payloadReader(kGeometryKind, file, path);
+  uint8_t enc = r.u8("encoding");
+  if (enc != uint8_t(Encoding::Float32)) r.fail("unknown geometry encoding " + std::to_string(enc));
+  uint8_t flags = r.u8("flags");
+  if (flags & ~uint8_t(kHasNormals | kHasColors | kHasTexcoords | kIndex16))
+    r.fail("unknown geometry flags");
+  uint32_t nv = r.u32("vertex count");
+  uint32_t ni = r.u32("index count");
+  uint32_t ns = r.u32("submesh count");
+  if (ni % 3) r.fail("index count " + std::to_string(ni) + " is not a multiple of 3");
+  if ((flags & kIndex16) && nv > 65536) r.fail("16-bit indices with more than 65536 vertices");
+  if (ns > r.remaining() / 28) r.fail("truncated: submesh count exceeds the file");
+  GeometryData g;
+  g.submeshes.resize(ns);
+  for (uint32_t i = 0; i < ns; ++i) {
+    SubMesh& s = g.submeshes[i];
+    s.first_index = r.u32("submesh first index");
+    s.index_count = r.u32("submesh index count");
+    for (float& d : s.diffuse) d = r.f32("diffuse");
+    s.texture = r.i32("texture");
+    if (s.first_index % 3 || s.index_count % 3 || s.first_index > ni ||
+        s.index_count > ni - s.first_index)
+      r.fail(at("submesh", i) + ": index range out of bounds");
+    if (s.texture < -1) r.fail(at("submesh", i) + ": bad texture index");
+    for (float d : s.diffuse)
+      if (!std::isfinite(d)) r.fail(at("submesh", i) + ": diffuse colour not finite");
+  }
+  r.array(&g.positions, uint64_t(nv) * 3, "positions");
+  for (float v : g.positions)
+    if (!std::isfinite(v)) r.fail("positions contain a non-finite value");
+  if (flags & kHasNormals) r.array(&g.normals, uint64_t(nv) * 3, "normals");
+  if (flags & kHasColors) r.array(&g.colors, uint64_t(nv) * 4, "colors");
+  if (flags & kHasTexcoords) r.array(&g.texcoords, uint64_t(nv) * 2, "texcoords");
+  if (flags & kIndex16) {
+    std::vector<uint16_t> small;
+    r.array(&small, ni, "indices");
+    g.indices.assign(small.begin(), small.end());
+  } else {
+    r.array(&g.indices, ni, "indices");
+  }
+  for (uint32_t idx : g.indices)
+    if (idx >= nv) r.fail("index " + std::to_string(idx) + " out of range (" +
+                          std::to_string(nv) + " vertices)");
+  r.finish();
+  return g;
+}
+
+// ---- textures -------------------------------------------------------------
+
+std::vector<uint8_t> encodeTexture(const TextureData& t) {
+  DMMR_CHECK(t.rgba.size() == size_t(t.width) * t.height * 4);
+  ByteWriter w;
+  w.u32(t.width);
+  w.u32(t.height);
+  w.u8(t.repeat_s ? 1 : 0);
+  w.u8(t.repeat_t ? 1 : 0);
+  w.array(t.rgba.data(), t.rgba.size());
+  return wrapContainer(kTextureKind, w.bytes());
+}
+
+TextureData decodeTexture(const std::vector<uint8_t>& file, const std::string& path) {
+  ByteReader r = payloadReader(kTextureKind, file, path);
+  TextureData t;
+  t.width = r.u32("width");
+  t.height = r.u32("height");
+  if (t.width == 0 || t.height == 0 || t.width > kMaxTextureSide || t.height > kMaxTextureSide)
+    r.fail("texture size " + std::to_string(t.width) + "x" + std::to_string(t.height) +
+           " out of range");
+  uint8_t rs = r.u8("repeat s"), rt = r.u8("repeat t");
+  if (rs > 1 || rt > 1) r.fail("repeat flags must be 0 or 1");
+  t.repeat_s = rs;
+  t.repeat_t = rt;
+  r.array(&t.rgba, uint64_t(t.width) * t.height * 4, "pixels");
+  r.finish();
+  return t;
+}
+
+// ---- manifest -------------------------------------------------------------
+
+namespace {
+using nlohmann::json;
+
+json vecJson(Vec3d v) { return json::array({v.x, v.y, v.z}); }
+
+struct JsonReader {
+  const std::string& path;
+  [[noreturn]] void fail(const std::string& what) const { throw Error(fileError(path, what)); }
+  const json& field(const json& obj, const char* key) const {
+    if (!obj.is_object()) fail(std::string("expected an object holding '") + key + "'");
+    auto it = obj.find(key);
+    if (it == obj.end()) fail(std::string("missing field '") + key + "'");
+    return *it;
+  }
+  uint64_t u64(const json& obj, const char* key) const {
+    const json& v = field(obj, key);
+    if (!v.is_number_unsigned()) fail(std::string("field '") + key + "' must be an unsigned integer");
+    return v.get<uint64_t>();
+  }
+  std::string str(const json& obj, const char* key) const {
+    const json& v = field(obj, key);
+    if (!v.is_string()) fail(std::string("field '") + key + "' must be a string");
+    return v.get<std::string>();
+  }
+  Vec3d vec(const json& obj, const char* key) const {
+    const json& v = field(obj, key);
+    if (!v.is_array() || v.size() != 3) fail(std::string("field '") + key + "' must be [x, y, z]");
+    Vec3d r;
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number()) fail(std::string("field '") + key + "' must hold numbers");
+      r[i] = v[i].get<double>();
+    }
+    return r;
+  }
+};
+}  // namespace
+
+std::string encodeManifest(const Manifest& m) {
+  json j;
+  j["format"] = "dmmr-scene";
+  j["version"] = m.version;
+  j["counts"] = {{"objects", m.objects},     {"geometries", m.geometries},
+                 {"textures", m.textures},   {"occluders", m.occluders},
+                 {"triangles", m.triangles}, {"unique_triangles", m.unique_triangles},
+                 {"geometry_bytes", m.geometry_bytes}};
+  j["bounds"] = {{"min", m.bounds.valid() ? vecJson(m.bounds.lo) : vecJson({0, 0, 0})},
+                 {"max", m.bounds.valid() ? vecJson(m.bounds.hi) : vecJson({0, 0, 0})}};
+  j["encoding"] = "float32";
+  j["inputs"] = m.inputs;
+  json files = json::object();
+  for (const auto& [name, e] : m.files) files[name] = {{"bytes", e.bytes}, {"crc32", e.crc}};
+  j["files"] = files;
+  return j.dump(1) + "\n";
+}
+
+Manifest decodeManifest(const std::string& text, const std::string& path) {
+  JsonReader R{path};
+  json j = json::parse(text, nullptr, false);
+  if (j.is_discarded()) R.fail("manifest is not valid JSON");
+  if (R.str(j, "format") != "dmmr-scene") R.fail("not a dmmr scene manifest");
+  Manifest m;
+  m.version = uint32_t(R.u64(j, "version"));
+  if (m.version != Manifest::kVersion)
+    R.fail("unsupported manifest version " + std::to_string(m.version) +
+           " (this build reads version " + std::to_string(Manifest::kVersion) + ")");
+  const json& c = R.field(j, "counts");
+  m.objects = R.u64(c, "objects");
+  m.geometries = R.u64(c, "geometries");
+  m.textures = R.u64(c, "textures");
+  m.occluders = R.u64(c, "occluders");
+  m.triangles = R.u64(c, "triangles");
+  m.unique_triangles = R.u64(c, "unique_triangles");
+  m.geometry_bytes = R.u64(c, "geometry_bytes");
+  const json& b = R.field(j, "bounds");
+  m.bounds.lo = R.vec(b, "min");
+  m.bounds.hi = R.vec(b, "max");
+  if (!isFinite(m.bounds.lo) || !isFinite(m.bounds.hi) || !m.bounds.valid())
+    R.fail("scene bounds are invalid");
+  if (R.str(j, "encoding") != "float32") R.fail("unknown geometry encoding");
+  const json& in = R.field(j, "inputs");
+  if (!in.is_array()) R.fail("field 'inputs' must be an array");
+  for (const auto& s : in) {
+    if (!s.is_string()) R.fail("field 'inputs' must hold strings");
+    m.inputs.push_back(s.get<std::string>());
+  }
+  const json& files = R.field(j, "files");
+  if (!files.is_object()) R.fail("field 'files' must be an object");
+  for (const auto& [name, e] : files.items()) {
+    if (name.empty() || name[0] == '/' || name.find("..") != std::string::npos)
+      R.fail("file name '" + name + "' is not a plain relative path");
+    uint64_t crc = R.u64(e, "crc32");
+    if (crc > 0xFFFFFFFFu) R.fail("crc32 of '" + name + "' out of range");
+    m.files[name] = {R.u64(e, "bytes"), uint32_t(crc)};
+  }
+  if (m.geometries > m.files.size() || m.objects > 0xFFFFFFF0u || m.geometries > 0xFFFFFFF0u)
+    R.fail("counts disagree with the file list");
+  return m;
+}
+
+}  // namespace dmmr

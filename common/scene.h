@@ -1,0 +1,37 @@
+// Loading and validating a preprocessed scene directory (see formats.h).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "formats.h"
+
+namespace dmmr {
+
+// What the server holds: everything but geometry. Clients add geometry on
+// demand with loadGeometry.
+struct Scene {
+  std::string dir;
+  Manifest manifest;
+  std::vector<SkeletonNode> skeleton;
+  std::vector<ObjectBounds> objects;
+  std::vector<uint32_t> occluders;
+};
+
+// Reads manifest, skeleton, bounds and occluders; checks each file's size and
+// CRC against the manifest and the references between them (object and
+// geometry indices in range, counts equal to the manifest's). Throws Error
+// naming the file and the problem.
+Scene loadScene(const std::string& dir);
+
+// Reads one geometry (or texture) file, checked against the manifest and the
+// scene's texture count. Throws Error naming the file.
+GeometryData loadGeometry(const Scene& scene, uint32_t index);
+TextureData loadTexture(const Scene& scene, uint32_t index);
+
+// The near plane distance every renderer of a scene uses unless told
+// otherwise: a small fraction of the scene's diagonal (reversed-Z float depth
+// keeps precision out to infinity, so a small near costs nothing).
+double defaultNear(const Scene& scene);
+
+}  // namespace dmmr

@@ -1,0 +1,43 @@
+// dmmr-preprocess INPUT... -o SCENE_DIR
+#include <CLI/CLI.hpp>
+#include <cstdio>
+
+#include "error.h"
+#include "preprocess.h"
+
+int main(int argc, char** argv) {
+  dmmr::PreprocessOptions o;
+  CLI::App app{"dmmr-preprocess: split a model into a dmmr scene directory"};
+  app.add_option("inputs", o.inputs, "models OpenSceneGraph reads (OBJ, PLY, OSGB, ...)")
+      ->required();
+  app.add_option("-o,--out", o.out, "scene directory to create (must not exist)")->required();
+  app.add_option("--occluder-area-percentile", o.occluder_area_percentile,
+                 "occluders: box face area at or above this percentile of all objects")
+      ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--occluder-max-triangles", o.occluder_max_triangles,
+                 "occluders: at most this many triangles");
+  app.add_flag("!--no-progress", o.progress, "do not print progress");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    dmmr::PreprocessStats s = dmmr::preprocess(o);
+    if (s.nonfinite_vertices)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: dropped %llu vertices with NaN or infinite "
+                   "coordinates and the %llu triangles using them\n",
+                   (unsigned long long)s.nonfinite_vertices, (unsigned long long)s.dropped_triangles);
+    if (s.skipped_drawables)
+      std::fprintf(stderr, "dmmr-preprocess: warning: skipped %llu drawables without triangle "
+                   "geometry\n", (unsigned long long)s.skipped_drawables);
+    std::printf("%s: %llu objects, %llu geometries, %llu textures, %llu occluders, %llu triangles "
+                "(%llu unique), %.1f MB, %.2f s (%.2f M triangles/s)\n",
+                o.out.c_str(), (unsigned long long)s.objects, (unsigned long long)s.geometries,
+                (unsigned long long)s.textures, (unsigned long long)s.occluders,
+                (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
+                double(s.bytes_written) / 1e6, s.seconds,
+                s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dmmr-preprocess: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

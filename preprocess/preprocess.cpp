@@ -1,0 +1,526 @@
+#include "preprocess.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <osg/Geode>
+#include <osg/Geometry>
+#include <osg/LOD>
+#include <osg/Material>
+#include <osg/Switch>
+#include <osg/Texture2D>
+#include <osg/Transform>
+#include <osg/TriangleIndexFunctor>
+#include <osgDB/ReadFile>
+#include <unordered_map>
+
+#include "atomic_file.h"
+#include "error.h"
+
+namespace fs = std::filesystem;
+
+namespace dmmr {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// State inherited along a path: the nearest Material's diffuse and the
+// nearest 2D texture on unit 0.
+struct InheritedState {
+  const osg::Material* material = nullptr;
+  const osg::Texture2D* texture = nullptr;
+};
+
+InheritedState applyStateSet(InheritedState s, const osg::StateSet* ss) {
+  if (!ss) return s;
+  if (auto* m = dynamic_cast<const osg::Material*>(ss->getAttribute(osg::StateAttribute::MATERIAL)))
+    s.material = m;
+  if (auto* t = dynamic_cast<const osg::Texture2D*>(
+          ss->getTextureAttribute(0, osg::StateAttribute::TEXTURE)))
+    s.texture = t;
+  // Generated texture coordinates (sphere maps, planes) are fixed-function
+  // effects dmmr does not reproduce: such a texture is left off.
+  if (ss->getTextureAttribute(0, osg::StateAttribute::TEXGEN)) s.texture = nullptr;
+  return s;
+}
+
+struct TriangleCollector {
+  std::vector<uint32_t>* out;
+  void operator()(unsigned a, unsigned b, unsigned c) {
+    out->push_back(a);
+    out->push_back(b);
+    out->push_back(c);
+  }
+};
+
+// Reads element i of a vertex-like array as double xyz.
+bool readVec3(const osg::Array* a, size_t i, Vec3d* v) {
+  if (auto* f = dynamic_cast<const osg::Vec3Array*>(a)) {
+    const osg::Vec3& p = (*f)[i];
+    *v = {p.x(), p.y(), p.z()};
+    return true;
+  }
+  if (auto* d = dynamic_cast<const osg::Vec3dArray*>(a)) {
+    const osg::Vec3d& p = (*d)[i];
+    *v = {p.x(), p.y(), p.z()};
+    return true;
+  }
+  return false;
+}
+
+bool readColor(const osg::Array* a, size_t i, uint8_t out[4]) {
+  auto q = [](float x) { return uint8_t(std::lround(std::clamp(x, 0.f, 1.f) * 255.f)); };
+  if (auto* c = dynamic_cast<const osg::Vec4Array*>(a)) {
+    for (int k = 0; k < 4; ++k) out[k] = q((*c)[i][k]);
+    return true;
+  }
+  if (auto* c = dynamic_cast<const osg::Vec4ubArray*>(a)) {
+    for (int k = 0; k < 4; ++k) out[k] = (*c)[i][k];
+    return true;
+  }
+  if (auto* c = dynamic_cast<const osg::Vec3Array*>(a)) {
+    for (int k = 0; k < 3; ++k) out[k] = q((*c)[i][k]);
+    out[3] = 255;
+    return true;
+  }
+  return false;
+}
+
+bool perVertex(const osg::Array* a, size_t nv) {
+  return a && a->getBinding() == osg::Array::BIND_PER_VERTEX && a->getNumElements() == nv;
+}
+
+// Converts an osg::Image to RGBA8, bottom row first. Returns false for pixel
+// formats dmmr does not take (the texture is then left off, with a warning).
+bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData* out) {
+  if (img.getDataType() != GL_UNSIGNED_BYTE || img.s() <= 0 || img.t() <= 0 || img.r() != 1)
+    return false;
+  int comps = 0;
+  switch (img.getPixelFormat()) {
+    case GL_LUMINANCE: comps = 1; break;
+    case GL_LUMINANCE_ALPHA: comps = 2; break;
+    case GL_RGB: comps = 3; break;
+    case GL_RGBA: comps = 4; break;
+    default: return false;
+  }
+  out->width = uint32_t(img.s());
+  out->height = uint32_t(img.t());
+  out->rgba.resize(size_t(out->width) * out->height * 4);
+  for (uint32_t y = 0; y < out->height; ++y) {
+    uint32_t srcRow = img.getOrigin() == osg::Image::TOP_LEFT ? out->height - 1 - y : y;
+    const uint8_t* src = img.data(0, int(srcRow));
+    uint8_t* dst = out->rgba.data() + size_t(y) * out->width * 4;
+    for (uint32_t x = 0; x < out->width; ++x, src += comps, dst += 4) {
+      uint8_t l = src[0];
+      dst[0] = comps >= 3 ? src[0] : l;
+      dst[1] = comps >= 3 ? src[1] : l;
+      dst[2] = comps >= 3 ? src[2] : l;
+      dst[3] = comps == 4 ? src[3] : (comps == 2 ? src[1] : 255);
+    }
+  }
+  auto repeat = [](osg::Texture::WrapMode m) {
+    return m == osg::Texture::REPEAT || m == osg::Texture::MIRROR;
+  };
+  out->repeat_s = repeat(tex.getWrap(osg::Texture::WRAP_S));
+  out->repeat_t = repeat(tex.getWrap(osg::Texture::WRAP_T));
+  return true;
+}
+
+struct GeometryInfo {
+  Vec3d center;   // local offset folded into each instance's transform
+  Box3d box;      // bounds of the recentred positions
+  double radius;  // around the box centre (0, 0, 0 after recentring)
+  uint64_t triangles;
+};
+
+class SceneWriter {
+ public:
+  SceneWriter(const PreprocessOptions& opts, std::string tmp) : opts_(opts), tmp_(std::move(tmp)) {
+    fs::create_directories(tmp_ + "/geometry");
+    fs::create_directories(tmp_ + "/textures");
+  }
+
+  void traverse(const osg::Node* node, const Mat4d& world, InheritedState state, uint32_t parent);
+  void finish(PreprocessStats* stats);
+
+ private:
+  uint32_t addNode(NodeKind kind, uint32_t parent, uint32_t object, const std::string& name);
+  void addObject(const osg::Node* node, const std::vector<const osg::Geometry*>& drawables,
+                 const Mat4d& world, const InheritedState& state, uint32_t parent);
+  uint32_t geometryFor(const osg::Node* key, const std::vector<const osg::Geometry*>& drawables,
+                       const InheritedState& state);
+  void appendDrawable(const osg::Geometry& geom, InheritedState state, GeometryData* g,
+                      std::vector<double>* positions, const std::vector<bool>& attrs);
+  int32_t textureFor(const osg::Texture2D* tex);
+  void writeFile(const std::string& name, const std::vector<uint8_t>& bytes);
+  void progress(bool force = false);
+
+  const PreprocessOptions& opts_;
+  std::string tmp_;
+  Manifest manifest_;
+  std::vector<SkeletonNode> skeleton_;
+  std::vector<ObjectBounds> objects_;
+  std::vector<GeometryInfo> geometries_;
+  std::map<std::tuple<const osg::Node*, const osg::Material*, const osg::Texture2D*>, uint32_t>
+      geometry_index_;
+  std::map<const osg::Image*, int32_t> texture_index_;
+  PreprocessStats stats_;
+  Clock::time_point start_ = Clock::now(), last_progress_ = Clock::now();
+};
+
+uint32_t SceneWriter::addNode(NodeKind kind, uint32_t parent, uint32_t object,
+                              const std::string& name) {
+  SkeletonNode n;
+  n.kind = kind;
+  n.parent = parent;
+  n.object = object;
+  n.name = name.size() > 4096 ? name.substr(0, 4096) : name;
+  skeleton_.push_back(std::move(n));
+  return uint32_t(skeleton_.size() - 1);
+}
+
+void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedState state,
+                           uint32_t parent) {
+  state = applyStateSet(state, node->getStateSet());
+  if (auto* geode = node->asGeode()) {
+    std::vector<const osg::Geometry*> drawables;
+    for (unsigned i = 0; i < geode->getNumDrawables(); ++i) {
+      const osg::Geometry* g = geode->getDrawable(i)->asGeometry();
+      if (g) drawables.push_back(g);
+      else ++stats_.skipped_drawables;
+    }
+    addObject(node, drawables, world, state, parent);
+    return;
+  }
+  if (auto* drawable = node->asDrawable()) {  // OSG 3.6 lets drawables sit in groups
+    if (auto* g = drawable->asGeometry()) addObject(node, {g}, world, state, parent);
+    else ++stats_.skipped_drawables;
+    return;
+  }
+  const osg::Group* group = node->asGroup();
+  if (!group) return;
+  Mat4d childWorld = world;
+  NodeKind kind = NodeKind::Group;
+  if (auto* t = node->asTransform()) {
+    osg::Matrixd local;  // identity; the transform composes its own matrix in
+    t->computeLocalToWorldMatrix(local, nullptr);
+    Mat4d m = Mat4d::fromOsgPtr(local.ptr());
+    childWorld = t->getReferenceFrame() == osg::Transform::RELATIVE_RF ? world * m : m;
+    kind = NodeKind::Transform;
+  }
+  uint32_t self = addNode(kind, parent, kNone, node->getName());
+  auto* sw = dynamic_cast<const osg::Switch*>(node);
+  auto* lod = dynamic_cast<const osg::LOD*>(node);
+  // A LOD contributes its most detailed child (the one whose range starts
+  // nearest); a Switch its enabled children.
+  int lodChild = -1;
+  if (lod && lod->getNumChildren() > 0) {
+    lodChild = 0;
+    for (unsigned i = 1; i < lod->getNumChildren() && i < lod->getNumRanges(); ++i)
+      if (lod->getMinRange(i) < lod->getMinRange(unsigned(lodChild))) lodChild = int(i);
+  }
+  for (unsigned i = 0; i < group->getNumChildren(); ++i) {
+    if (sw && !sw->getValue(i)) continue;
+    if (lod && int(i) != lodChild) continue;
+    traverse(group->getChild(i), childWorld, state, self);
+  }
+  skeleton_[self].end = uint32_t(skeleton_.size());
+}
+
+void SceneWriter::addObject(const osg::Node* node,
+                            const std::vector<const osg::Geometry*>& drawables,
+                            const Mat4d& world, const InheritedState& state, uint32_t parent) {
+  uint32_t gi = geometryFor(node, drawables, state);
+  if (gi == kNone) return;  // nothing drawable (no triangles)
+  const GeometryInfo& info = geometries_[gi];
+  ObjectBounds o;
+  o.geometry = gi;
+  o.transform = world * Mat4d::translate(info.center);
+  o.box = transformBox(o.transform, info.box);
+  o.sphere.center = o.transform.transformPoint(info.box.center());
+  o.sphere.radius = info.radius * o.transform.maxScale();
+  o.use_box = o.box.volume() <= o.sphere.volume();
+  o.weight = info.triangles;
+  uint32_t index = uint32_t(objects_.size());
+  objects_.push_back(o);
+  uint32_t self = addNode(NodeKind::Object, parent, index, node->getName());
+  skeleton_[self].end = self + 1;
+  stats_.triangles += info.triangles;
+  progress();
+}
+
+uint32_t SceneWriter::geometryFor(const osg::Node* key,
+                                  const std::vector<const osg::Geometry*>& drawables,
+                                  const InheritedState& state) {
+  auto k = std::make_tuple(key, state.material, state.texture);
+  if (auto it = geometry_index_.find(k); it != geometry_index_.end()) return it->second;
+  // Which optional attributes any drawable has: the merged geometry carries
+  // an attribute only if at least one drawable does.
+  std::vector<bool> attrs(3, false);
+  for (const osg::Geometry* d : drawables) {
+    size_t nv = d->getVertexArray() ? d->getVertexArray()->getNumElements() : 0;
+    InheritedState s = applyStateSet(state, d->getStateSet());
+    attrs[0] = attrs[0] || perVertex(d->getNormalArray(), nv);
+    attrs[1] = attrs[1] || perVertex(d->getColorArray(), nv);
+    attrs[2] = attrs[2] || (s.texture && perVertex(d->getTexCoordArray(0), nv));
+  }
+  GeometryData g;
+  std::vector<double> pos;
+  for (const osg::Geometry* d : drawables) appendDrawable(*d, state, &g, &pos, attrs);
+  if (g.indices.empty()) {
+    geometry_index_[k] = kNone;
+    return kNone;
+  }
+  // Recentre on the box centre in double before converting to float, so a
+  // model placed far from the origin keeps its precision.
+  Box3d box;
+  for (size_t i = 0; i < pos.size(); i += 3) box.expand(Vec3d{pos[i], pos[i + 1], pos[i + 2]});
+  GeometryInfo info;
+  info.center = box.center();
+  g.positions.resize(pos.size());
+  for (size_t i = 0; i < pos.size(); ++i) g.positions[i] = float(pos[i] - info.center[int(i % 3)]);
+  auto at = [&](size_t i) { return Vec3d{g.positions[i], g.positions[i + 1], g.positions[i + 2]}; };
+  for (size_t i = 0; i < g.positions.size(); i += 3) info.box.expand(at(i));
+  double r2 = 0;
+  for (size_t i = 0; i < g.positions.size(); i += 3) {
+    Vec3d d = at(i) - info.box.center();
+    r2 = std::max(r2, dot(d, d));
+  }
+  info.radius = std::sqrt(r2) * (1 + 1e-12);
+  info.triangles = g.triangleCount();
+  uint32_t index = uint32_t(geometries_.size());
+  geometries_.push_back(info);
+  geometry_index_[k] = index;
+  writeFile(geometryFileName(index), encodeGeometry(g));
+  stats_.unique_triangles += info.triangles;
+  return index;
+}
+
+// Appends one drawable's triangles to `g`. Positions go to `positions` in
+// double; the caller recentres them before they become float.
+void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state, GeometryData* g,
+                                 std::vector<double>* positions, const std::vector<bool>& attrs) {
+  state = applyStateSet(state, geom.getStateSet());
+  const osg::Array* verts = geom.getVertexArray();
+  if (!verts || verts->getNumElements() == 0) return;
+  size_t nv = verts->getNumElements();
+  Vec3d probe;
+  if (!readVec3(verts, 0, &probe)) {
+    ++stats_.skipped_drawables;  // 2D or 4D vertex arrays: not taken
+    return;
+  }
+  std::vector<uint32_t> tris;
+  osg::TriangleIndexFunctor<TriangleCollector> f;
+  f.out = &tris;
+  geom.accept(f);
+  if (tris.empty()) return;
+
+  std::vector<uint8_t> finite(nv);
+  for (size_t i = 0; i < nv; ++i) {
+    Vec3d p;
+    readVec3(verts, i, &p);
+    finite[i] = isFinite(p) && std::isfinite(float(p.x)) && std::isfinite(float(p.y)) &&
+                std::isfinite(float(p.z));
+    if (!finite[i]) ++stats_.nonfinite_vertices;
+  }
+  // Compact to the referenced, finite vertices; renumber indices.
+  std::vector<uint32_t> remap(nv, kNone);
+  const osg::Array* normals = perVertex(geom.getNormalArray(), nv) ? geom.getNormalArray() : nullptr;
+  const osg::Array* colors = perVertex(geom.getColorArray(), nv) ? geom.getColorArray() : nullptr;
+  auto* uv = dynamic_cast<const osg::Vec2Array*>(geom.getTexCoordArray(0));
+  if (!state.texture || !perVertex(uv, nv)) uv = nullptr;
+  uint32_t firstIndex = uint32_t(g->indices.size());
+  for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+    uint32_t v[3] = {tris[t], tris[t + 1], tris[t + 2]};
+    if (v[0] >= nv || v[1] >= nv || v[2] >= nv || !finite[v[0]] || !finite[v[1]] || !finite[v[2]]) {
+      ++stats_.dropped_triangles;
+      continue;
+    }
+    for (uint32_t src : v) {
+      if (remap[src] == kNone) {
+        remap[src] = uint32_t(positions->size() / 3);
+        Vec3d p;
+        readVec3(verts, src, &p);
+        positions->insert(positions->end(), {p.x, p.y, p.z});
+        if (attrs[0]) {
+          Vec3d n{0, 0, 0};
+          if (normals) readVec3(normals, src, &n);
+          g->normals.insert(g->normals.end(), {float(n.x), float(n.y), float(n.z)});
+        }
+        if (attrs[1]) {
+          uint8_t c[4] = {255, 255, 255, 255};
+          if (colors) readColor(colors, src, c);
+          g->colors.insert(g->colors.end(), c, c + 4);
+        }
+        if (attrs[2]) {
+          osg::Vec2 tc = uv ? (*uv)[src] : osg::Vec2(0, 0);
+          g->texcoords.insert(g->texcoords.end(), {tc.x(), tc.y()});
+        }
+      }
+      g->indices.push_back(remap[src]);
+    }
+  }
+  SubMesh sm;
+  sm.first_index = firstIndex;
+  sm.index_count = uint32_t(g->indices.size()) - firstIndex;
+  if (sm.index_count == 0) return;
+  osg::Vec4 diffuse(0.8f, 0.8f, 0.8f, 1.f);
+  if (state.material) diffuse = state.material->getDiffuse(osg::Material::FRONT);
+  else if (geom.getColorArray() && geom.getColorArray()->getBinding() == osg::Array::BIND_OVERALL) {
+    uint8_t c[4];
+    if (readColor(geom.getColorArray(), 0, c))
+      diffuse = osg::Vec4(c[0] / 255.f, c[1] / 255.f, c[2] / 255.f, c[3] / 255.f);
+  }
+  for (int k = 0; k < 4; ++k) sm.diffuse[k] = diffuse[k];
+  sm.texture = uv ? textureFor(state.texture) : -1;
+  g->submeshes.push_back(sm);
+}
+
+int32_t SceneWriter::textureFor(const osg::Texture2D* tex) {
+  const osg::Image* img = tex->getImage();
+  if (!img) return -1;
+  if (auto it = texture_index_.find(img); it != texture_index_.end()) return it->second;
+  TextureData t;
+  int32_t index = -1;
+  if (convertImage(*img, *tex, &t)) {
+    index = int32_t(manifest_.textures++);
+    writeFile(textureFileName(uint32_t(index)), encodeTexture(t));
+  } else {
+    std::fprintf(stderr, "dmmr-preprocess: warning: texture %s has an unsupported pixel format; "
+                 "left off\n", img->getFileName().c_str());
+  }
+  texture_index_[img] = index;
+  return index;
+}
+
+void SceneWriter::writeFile(const std::string& name, const std::vector<uint8_t>& bytes) {
+  std::string path = tmp_ + "/" + name;
+  std::ofstream f(path, std::ios::binary);
+  if (!f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size())) ||
+      !f.flush())
+    throw Error(fileError(path, "write failed (disk full?)"));
+  manifest_.files[name] = {bytes.size(), crc32(bytes.data(), bytes.size())};
+  stats_.bytes_written += bytes.size();
+}
+
+void SceneWriter::progress(bool force) {
+  if (!opts_.progress) return;
+  auto now = Clock::now();
+  if (!force && now - last_progress_ < std::chrono::seconds(1)) return;
+  last_progress_ = now;
+  double s = std::chrono::duration<double>(now - start_).count();
+  std::fprintf(stderr, "\rdmmr-preprocess: %zu objects, %zu geometries, %.1fM triangles, %.1f s",
+               objects_.size(), geometries_.size(), double(stats_.triangles) / 1e6, s);
+}
+
+void SceneWriter::finish(PreprocessStats* stats) {
+  progress(true);
+  if (opts_.progress) std::fprintf(stderr, "\n");
+  if (objects_.empty())
+    throw Error(fileError(opts_.inputs.front(), "model has no triangles to render"));
+  // Subtree boxes, children before parents (reverse pre-order).
+  for (size_t i = skeleton_.size(); i-- > 0;) {
+    SkeletonNode& n = skeleton_[i];
+    if (n.kind == NodeKind::Object) n.box = objects_[n.object].box;
+    if (n.parent != kNone) skeleton_[n.parent].box.expand(n.box);
+  }
+  std::vector<uint32_t> occluders =
+      selectOccluders(objects_, opts_.occluder_area_percentile, opts_.occluder_max_triangles);
+  manifest_.geometry_bytes = stats_.bytes_written;
+  writeFile("skeleton.bin", encodeSkeleton(skeleton_));
+  writeFile("bounds.bin", encodeBounds(objects_));
+  writeFile("occluders.bin", encodeOccluders(occluders));
+  manifest_.objects = objects_.size();
+  manifest_.geometries = geometries_.size();
+  manifest_.occluders = occluders.size();
+  manifest_.triangles = stats_.triangles;
+  manifest_.unique_triangles = stats_.unique_triangles;
+  manifest_.bounds = skeleton_[0].box;
+  for (const auto& in : opts_.inputs) manifest_.inputs.push_back(fs::absolute(in).string());
+  writeFileAtomic(tmp_ + "/manifest.json", encodeManifest(manifest_));
+  stats_.objects = objects_.size();
+  stats_.geometries = geometries_.size();
+  stats_.textures = manifest_.textures;
+  stats_.occluders = occluders.size();
+  *stats = stats_;
+}
+
+osg::ref_ptr<osg::Node> readModel(const std::string& path) {
+  if (!fs::exists(path)) throw Error(fileError(path, "no such file"));
+  if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
+  osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
+  if (!node) throw Error(fileError(path, "OpenSceneGraph cannot read this model (unknown format "
+                                         "or corrupt file)"));
+  return node;
+}
+
+}  // namespace
+
+std::vector<uint32_t> selectOccluders(const std::vector<ObjectBounds>& objects,
+                                      double area_percentile, uint64_t max_triangles) {
+  if (objects.empty()) return {};
+  auto faceArea = [](const ObjectBounds& o) {
+    Vec3d e = o.box.extent();
+    return std::max({e.x * e.y, e.y * e.z, e.x * e.z});
+  };
+  std::vector<double> areas;
+  areas.reserve(objects.size());
+  for (const auto& o : objects) areas.push_back(faceArea(o));
+  std::vector<double> sorted = areas;
+  size_t k = std::min(sorted.size() - 1,
+                      size_t(std::clamp(area_percentile, 0.0, 100.0) / 100.0 * double(sorted.size())));
+  std::nth_element(sorted.begin(), sorted.begin() + long(k), sorted.end());
+  double threshold = sorted[k];
+  std::vector<uint32_t> out;
+  for (size_t i = 0; i < objects.size(); ++i)
+    if (areas[i] >= threshold && areas[i] > 0 && objects[i].weight <= max_triangles)
+      out.push_back(uint32_t(i));
+  return out;
+}
+
+PreprocessStats preprocess(const PreprocessOptions& opts) {
+  if (opts.inputs.empty()) throw Error("no input models given");
+  if (opts.out.empty()) throw Error("no output directory given");
+  fs::path out = fs::path(opts.out).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  if (fs::exists(out))
+    throw Error(fileError(out.string(), "output already exists; remove it or choose another"));
+  auto t0 = Clock::now();  // reading the models counts toward throughput
+  std::vector<osg::ref_ptr<osg::Node>> models;
+  for (const auto& in : opts.inputs) models.push_back(readModel(in));
+
+  fs::path tmp = out;
+  tmp += ".partial-" + std::to_string(::getpid());
+  fs::remove_all(tmp);
+  PreprocessStats stats;
+  try {
+    SceneWriter w(opts, tmp.string());
+    // One root group over all inputs, so every object has a skeleton path.
+    osg::ref_ptr<osg::Group> root = new osg::Group;
+    root->setName("dmmr-root");
+    for (auto& m : models) root->addChild(m);
+    w.traverse(root.get(), Mat4d::identity(), {}, kNone);
+    w.finish(&stats);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  std::error_code ec;
+  fs::rename(tmp, out, ec);
+  if (ec) {
+    fs::remove_all(tmp, ec);
+    throw Error(fileError(out.string(), "cannot move the finished scene into place"));
+  }
+  stats.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  return stats;
+}
+
+}  // namespace dmmr

@@ -1,0 +1,46 @@
+// dmmr-preprocess: turns any model OpenSceneGraph reads into a dmmr scene
+// directory (see common/formats.h).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "formats.h"
+
+namespace osg {
+class Node;
+}
+
+namespace dmmr {
+
+struct PreprocessOptions {
+  std::vector<std::string> inputs;
+  std::string out;  // must not exist; written to a temporary sibling, then renamed
+  bool progress = true;
+  // Potential occluders are big and cheap: the largest face of an object's
+  // world box is in the top (100 - area_percentile)% of all objects, and it
+  // has at most max_triangles triangles.
+  double occluder_area_percentile = 90;
+  uint64_t occluder_max_triangles = 10000;
+};
+
+struct PreprocessStats {
+  uint64_t objects = 0, geometries = 0, textures = 0, occluders = 0;
+  uint64_t triangles = 0, unique_triangles = 0;
+  uint64_t nonfinite_vertices = 0;  // vertices with NaN/inf coordinates (dropped)
+  uint64_t dropped_triangles = 0;   // triangles that used such vertices
+  uint64_t skipped_drawables = 0;   // drawables that are not triangle geometry
+  uint64_t bytes_written = 0;
+  double seconds = 0;
+};
+
+// Throws Error naming the input or output and what is wrong; never leaves a
+// partial scene at `out`.
+PreprocessStats preprocess(const PreprocessOptions& opts);
+
+// The occluder criterion above, over plain data (exposed for tests).
+std::vector<uint32_t> selectOccluders(const std::vector<ObjectBounds>& objects,
+                                      double area_percentile, uint64_t max_triangles);
+
+}  // namespace dmmr
