@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Configures and builds dmmr into build/ (binaries in build/bin/).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${DMMR_BUILD_DIR:-build}
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=${DMMR_BUILD_TYPE:-RelWithDebInfo} "$@" >/dev/null
+cmake --build "$build" -j "$(nproc)"

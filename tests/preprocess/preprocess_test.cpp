@@ -1,0 +1,343 @@
+// The preprocessor against hand-computed bounds, instancing, bad input, and
+// the real models beside the checkout.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <osg/Geode>
+#include <osg/Geometry>
+#include <osg/Material>
+#include <osg/MatrixTransform>
+#include <osgDB/ReadFile>
+#include <osgDB/WriteFile>
+#include <osgUtil/Statistics>
+
+#include "error.h"
+#include "preprocess.h"
+#include "scene.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace dmmr;
+using dmmr::test::TempDir;
+
+namespace {
+
+// An axis-aligned unit cube centred on `c` (12 triangles), optionally with
+// normals; vertices at c +- 0.5.
+osg::ref_ptr<osg::Geode> cube(osg::Vec3 c = {0, 0, 0}, bool normals = false) {
+  auto* v = new osg::Vec3Array;
+  for (int i = 0; i < 8; ++i)
+    v->push_back(c + osg::Vec3((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f,
+                               (i & 4) ? 0.5f : -0.5f));
+  const GLuint idx[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                          2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  auto* geom = new osg::Geometry;
+  geom->setVertexArray(v);
+  geom->addPrimitiveSet(new osg::DrawElementsUInt(GL_TRIANGLES, 36, idx));
+  if (normals) {
+    auto* n = new osg::Vec3Array;
+    for (auto& p : *v) {
+      osg::Vec3 d = p - c;
+      d.normalize();
+      n->push_back(d);
+    }
+    geom->setNormalArray(n, osg::Array::BIND_PER_VERTEX);
+  }
+  osg::ref_ptr<osg::Geode> g = new osg::Geode;
+  g->addDrawable(geom);
+  return g;
+}
+
+std::string writeModel(const TempDir& dir, osg::Node* node, const std::string& name) {
+  std::string path = dir / name;
+  EXPECT_TRUE(osgDB::writeNodeFile(*node, path)) << path;
+  return path;
+}
+
+PreprocessStats run(const std::vector<std::string>& inputs, const std::string& out) {
+  PreprocessOptions o;
+  o.inputs = inputs;
+  o.out = out;
+  o.progress = false;
+  return preprocess(o);
+}
+
+// Triangles as OpenSceneGraph itself counts them (instances counted each).
+uint64_t osgTriangleCount(osg::Node* node) {
+  osgUtil::StatsVisitor sv;
+  node->accept(sv);
+  uint64_t tris = 0;
+  // The count map holds primitives per mode (quads as quads).
+  for (const auto& [mode, count] : sv._instancedStats.getPrimitiveCountMap()) {
+    switch (mode) {
+      case GL_TRIANGLES:
+      case GL_TRIANGLE_STRIP:
+      case GL_TRIANGLE_FAN: tris += count; break;
+      case GL_QUADS:
+      case GL_QUAD_STRIP: tris += 2 * uint64_t(count); break;
+      case GL_POLYGON: ADD_FAILURE() << "GL_POLYGON counts are not triangles in osgUtil"; break;
+      default: break;
+    }
+  }
+  return tris;
+}
+
+void expectNear(Vec3d a, Vec3d b, double eps = 1e-9) {
+  EXPECT_NEAR(a.x, b.x, eps);
+  EXPECT_NEAR(a.y, b.y, eps);
+  EXPECT_NEAR(a.z, b.z, eps);
+}
+
+}  // namespace
+
+TEST(Preprocess, BoundsAndWeightsOfATranslatedScaledCube) {
+  TempDir dir;
+  osg::ref_ptr<osg::MatrixTransform> t = new osg::MatrixTransform(
+      osg::Matrixd::scale(2, 2, 2) * osg::Matrixd::translate(10, 0, 0));
+  t->addChild(cube());
+  run({writeModel(dir, t.get(), "cube.osgb")}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  ASSERT_EQ(s.objects.size(), 1u);
+  const ObjectBounds& o = s.objects[0];
+  EXPECT_EQ(o.weight, 12u);
+  expectNear(o.box.lo, {9, -1, -1});
+  expectNear(o.box.hi, {11, 1, 1});
+  expectNear(o.sphere.center, {10, 0, 0});
+  EXPECT_NEAR(o.sphere.radius, std::sqrt(3.0), 1e-6);  // half diagonal of a 2-unit cube
+  EXPECT_TRUE(o.use_box);                               // 8 < 4/3 pi 3^1.5
+  EXPECT_EQ(s.manifest.triangles, 12u);
+  expectNear(s.manifest.bounds.lo, {9, -1, -1});
+}
+
+TEST(Preprocess, RotatedCubeGetsAConservativeBoxAndExactSphere) {
+  TempDir dir;
+  osg::ref_ptr<osg::MatrixTransform> t =
+      new osg::MatrixTransform(osg::Matrixd::rotate(M_PI / 4, osg::Vec3d(0, 0, 1)));
+  t->addChild(cube({3, 0, 0}));  // off-centre in its own frame
+  run({writeModel(dir, t.get(), "cube.osgb")}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  const ObjectBounds& o = s.objects[0];
+  // Centre (3,0,0) rotated 45 degrees about Z; the rotated unit box spans
+  // +-sqrt(2)/2 in x and y around it.
+  double h = std::sqrt(0.5), c = 3 * std::sqrt(0.5);
+  expectNear(o.sphere.center, {c, c, 0}, 1e-6);
+  EXPECT_NEAR(o.sphere.radius, std::sqrt(0.75), 1e-6);
+  expectNear(o.box.lo, {c - h, c - h, -0.5}, 1e-6);
+  expectNear(o.box.hi, {c + h, c + h, 0.5}, 1e-6);
+  // The geometry is stored recentred: its transform carries the offset.
+  GeometryData g = loadGeometry(s, o.geometry);
+  for (size_t i = 0; i < g.positions.size(); ++i) EXPECT_EQ(std::fabs(g.positions[i]), 0.5f);
+}
+
+TEST(Preprocess, InstancesShareOneGeometryFile) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  osg::ref_ptr<osg::Geode> shared = cube({0, 0, 0}, true);
+  for (int i = 0; i < 5; ++i) {
+    auto* t = new osg::MatrixTransform(osg::Matrixd::translate(3.0 * i, 0, 0));
+    t->addChild(shared);
+    root->addChild(t);
+  }
+  std::string model = writeModel(dir, root.get(), "five.osgb");
+  PreprocessStats st = run({model}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  EXPECT_EQ(st.objects, 5u);
+  EXPECT_EQ(st.geometries, 1u);
+  EXPECT_EQ(s.manifest.triangles, 60u);
+  EXPECT_EQ(s.manifest.unique_triangles, 12u);
+  size_t files = 0;
+  for (auto& e : fs::directory_iterator(dir / "scene/geometry")) files += e.is_regular_file();
+  EXPECT_EQ(files, 1u);
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(s.objects[i].geometry, 0u);
+    expectNear(s.objects[i].sphere.center, {3.0 * i, 0, 0});
+  }
+}
+
+TEST(Preprocess, StoresOnlyTheAttributesTheModelHas) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  root->addChild(cube({0, 0, 0}, false));
+  root->addChild(cube({2, 0, 0}, true));
+  run({writeModel(dir, root.get(), "two.osgb")}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  ASSERT_EQ(s.manifest.geometries, 2u);
+  GeometryData bare = loadGeometry(s, s.objects[0].geometry);
+  GeometryData withNormals = loadGeometry(s, s.objects[1].geometry);
+  EXPECT_TRUE(bare.normals.empty());
+  EXPECT_TRUE(bare.colors.empty());
+  EXPECT_TRUE(bare.texcoords.empty());
+  EXPECT_EQ(withNormals.normals.size(), withNormals.positions.size());
+}
+
+TEST(Preprocess, MaterialDiffuseIsKept) {
+  TempDir dir;
+  osg::ref_ptr<osg::Geode> g = cube();
+  auto* m = new osg::Material;
+  m->setDiffuse(osg::Material::FRONT_AND_BACK, osg::Vec4(0.25f, 0.5f, 0.75f, 1.f));
+  g->getOrCreateStateSet()->setAttribute(m);
+  run({writeModel(dir, g.get(), "m.osgb")}, dir / "scene");
+  GeometryData geo = loadGeometry(loadScene(dir / "scene"), 0);
+  ASSERT_EQ(geo.submeshes.size(), 1u);
+  EXPECT_EQ(geo.submeshes[0].diffuse[0], 0.25f);
+  EXPECT_EQ(geo.submeshes[0].diffuse[2], 0.75f);
+}
+
+TEST(Preprocess, NonFiniteVerticesAreDroppedWithTheirTrianglesAndCounted) {
+  TempDir dir;
+  osg::ref_ptr<osg::Geode> g = cube();
+  auto* v = static_cast<osg::Vec3Array*>(g->getDrawable(0)->asGeometry()->getVertexArray());
+  (*v)[7] = osg::Vec3(NAN, 0, 0);  // vertex 7 is used by 3 of the 12 triangles
+  PreprocessStats st = run({writeModel(dir, g.get(), "nan.osgb")}, dir / "scene");
+  EXPECT_EQ(st.nonfinite_vertices, 1u);
+  EXPECT_EQ(st.dropped_triangles, 3u);
+  EXPECT_EQ(st.triangles, 9u);
+  GeometryData geo = loadGeometry(loadScene(dir / "scene"), 0);
+  EXPECT_EQ(geo.vertexCount(), 7u);
+  for (float f : geo.positions) EXPECT_TRUE(std::isfinite(f));
+}
+
+TEST(Preprocess, FarFromOriginKeepsPrecisionByRecentring) {
+  TempDir dir;
+  // Vertices 1e6 from the origin in double, 1 mm apart: float positions at
+  // 1e6 would be quantised to 6 cm; recentred they are exact to float.
+  auto* v = new osg::Vec3dArray;
+  v->push_back({1e6, 1e6, 0});
+  v->push_back({1e6 + 0.001, 1e6, 0});
+  v->push_back({1e6, 1e6 + 0.001, 0});
+  auto* geom = new osg::Geometry;
+  geom->setVertexArray(v);
+  geom->addPrimitiveSet(new osg::DrawArrays(GL_TRIANGLES, 0, 3));
+  osg::ref_ptr<osg::Geode> g = new osg::Geode;
+  g->addDrawable(geom);
+  run({writeModel(dir, g.get(), "far.osgb")}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  GeometryData geo = loadGeometry(s, 0);
+  for (size_t i = 0; i < 3; ++i) {
+    Vec3d p{geo.positions[3 * i], geo.positions[3 * i + 1], geo.positions[3 * i + 2]};
+    Vec3d w = s.objects[0].transform.transformPoint(p);
+    Vec3d expect{(*v)[i].x(), (*v)[i].y(), (*v)[i].z()};
+    expectNear(w, expect, 1e-7);
+  }
+}
+
+TEST(Preprocess, SkeletonBoxesEncloseTheirSubtrees) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  for (int i = 0; i < 3; ++i) {
+    auto* t = new osg::MatrixTransform(osg::Matrixd::translate(0, 4.0 * i, 0));
+    t->addChild(cube({1, 0, 0}));
+    t->addChild(cube({-1, 0, 2}));
+    root->addChild(t);
+  }
+  run({writeModel(dir, root.get(), "tree.osgb")}, dir / "scene");
+  Scene s = loadScene(dir / "scene");
+  size_t objectNodes = 0;
+  for (size_t i = 0; i < s.skeleton.size(); ++i) {
+    const SkeletonNode& n = s.skeleton[i];
+    objectNodes += n.kind == NodeKind::Object;
+    for (uint32_t c = uint32_t(i) + 1; c < n.end; ++c) {
+      EXPECT_LE(n.box.lo.x, s.skeleton[c].box.lo.x);
+      EXPECT_GE(n.box.hi.y, s.skeleton[c].box.hi.y);
+    }
+  }
+  EXPECT_EQ(objectNodes, 6u);
+}
+
+TEST(Preprocess, OccludersAreLargeAndCheap) {
+  std::vector<ObjectBounds> objs(10);
+  for (int i = 0; i < 10; ++i) {
+    objs[i].box = Box3d{{0, 0, 0}, {1.0 + i, 1, 1}};  // face area grows with i
+    objs[i].weight = 100;
+  }
+  objs[9].weight = 1'000'000;  // biggest but too expensive
+  std::vector<uint32_t> occ = selectOccluders(objs, 80, 10000);
+  EXPECT_EQ(occ, (std::vector<uint32_t>{8}));
+  EXPECT_EQ(selectOccluders(objs, 0, 10000).size(), 9u);
+  EXPECT_TRUE(selectOccluders({}, 90, 10).empty());
+}
+
+TEST(Preprocess, ExistingOutputIsRefusedAndLeftAlone) {
+  TempDir dir;
+  std::string model = writeModel(dir, cube().get(), "c.osgb");
+  fs::create_directories(dir / "scene");
+  std::ofstream(dir / "scene/keep.txt") << "mine";
+  try {
+    run({model}, dir / "scene");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("already exists"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::exists(dir / "scene/keep.txt"));
+}
+
+TEST(Preprocess, MissingAndUnreadableModelsAreErrorsNamingTheFile) {
+  TempDir dir;
+  EXPECT_THROW(run({dir / "nope.obj"}, dir / "s1"), Error);
+  std::ofstream(dir / "junk.osgb") << "this is not a model";
+  try {
+    run({dir / "junk.osgb"}, dir / "s2");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("junk.osgb"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "s1"));
+  EXPECT_FALSE(fs::exists(dir / "s2"));
+}
+
+TEST(Preprocess, EmptyModelIsAnErrorAndLeavesNoHalfScene) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> empty = new osg::Group;
+  empty->addChild(new osg::Group);
+  std::string model = writeModel(dir, empty.get(), "empty.osgb");
+  EXPECT_THROW(run({model}, dir / "scene"), Error);
+  EXPECT_FALSE(fs::exists(dir / "scene"));
+  for (auto& e : fs::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().filename().string().find("scene.partial"), std::string::npos);
+}
+
+TEST(Preprocess, CommandLineReportsErrorsWithNonZeroExit) {
+  TempDir dir;
+  int status = 0;
+  std::string out =
+      test::runCapture(test::tool("dmmr-preprocess") + " " + (dir / "missing.obj") + " -o " +
+                           (dir / "scene"),
+                       &status);
+  EXPECT_EQ(status, 1);
+  EXPECT_NE(out.find("missing.obj: no such file"), std::string::npos) << out;
+}
+
+// Every real model beside the checkout: triangle counts match OSG's own.
+class RealModel : public testing::TestWithParam<std::string> {};
+
+TEST_P(RealModel, TriangleCountMatchesOpenSceneGraph) {
+  std::string models = test::sharedModelsDir();
+  if (models.empty()) GTEST_SKIP() << "../shared/models is absent; real-model tests skipped";
+  std::string path = models + "/" + GetParam();
+  osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
+  ASSERT_TRUE(node) << path;
+  uint64_t expected = osgTriangleCount(node.get());
+  TempDir dir;
+  PreprocessStats st = run({path}, dir / "scene");
+  EXPECT_EQ(st.triangles, expected);
+  EXPECT_GT(st.triangles, 1000u);
+  Scene s = loadScene(dir / "scene");
+  uint64_t sum = 0;
+  for (const auto& o : s.objects) sum += o.weight;
+  EXPECT_EQ(sum, expected);
+  for (uint32_t g = 0; g < s.manifest.geometries; ++g) EXPECT_NO_THROW(loadGeometry(s, g));
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedModels, RealModel,
+                         testing::Values("skull/skull.obj", "koala/koala.obj",
+                                         "scorpion/scorpion.obj", "osg-data-cow.osgt",
+                                         "osg-data-dumptruck.osgt", "osg-data-cessna.osgt",
+                                         "osg-data-lz.osgt"),
+                         [](const testing::TestParamInfo<std::string>& i) {
+                           std::string n = i.param.substr(i.param.find_last_of('/') + 1);
+                           for (char& c : n)
+                             if (!isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return n;
+                         });

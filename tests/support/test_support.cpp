@@ -1,0 +1,52 @@
+#include "test_support.h"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cstdio>
+
+namespace dmmr::test {
+
+TempDir::TempDir() {
+  static std::atomic<int> counter{0};
+  std::string base = std::filesystem::temp_directory_path().string();
+  path_ = base + "/dmmr-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  std::filesystem::remove_all(path_);
+  std::filesystem::create_directories(path_);
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  if (!std::getenv("DMMR_KEEP_TEST_FILES")) std::filesystem::remove_all(path_, ec);
+}
+
+std::string sharedModelsDir() {
+  std::string dir = std::string(DMMR_SOURCE_DIR) + "/../shared/models";
+  return std::filesystem::is_directory(dir) ? dir : "";
+}
+
+std::string tool(const std::string& name) { return std::string(DMMR_BIN_DIR) + "/" + name; }
+
+int run(const std::string& command) {
+  int s = std::system(command.c_str());
+  return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+}
+
+std::string runCapture(const std::string& command, int* status) {
+  std::string out;
+  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
+  if (!p) {
+    *status = -1;
+    return out;
+  }
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
+  int s = ::pclose(p);
+  *status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  return out;
+}
+
+}  // namespace dmmr::test

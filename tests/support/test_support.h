@@ -1,0 +1,34 @@
+// Helpers shared by dmmr's tests: temporary directories, tool paths, and the
+// real models beside the checkout.
+#pragma once
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace dmmr::test {
+
+// A fresh directory under the system temp dir, removed when destroyed.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::string& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+// ../shared/models beside the source tree, or "" when it is absent.
+std::string sharedModelsDir();
+// build/bin/NAME.
+std::string tool(const std::string& name);
+// Runs a shell command; returns its exit status (-1 when it did not exit).
+int run(const std::string& command);
+// Runs a command and returns its stdout+stderr; *status gets the exit status.
+std::string runCapture(const std::string& command, int* status);
+
+}  // namespace dmmr::test
