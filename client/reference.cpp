@@ -9,6 +9,7 @@
 #include "draw.h"
 #include "error.h"
 #include "image.h"
+#include "mesh_provider.h"
 #include "scene.h"
 #include "walkthrough.h"
 
@@ -34,12 +35,6 @@ Image toImage(int w, int h, const std::vector<uint8_t>& bottomUp) {
 
 }  // namespace
 
-std::string frameFileName(size_t frame) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "frame_%06zu.png", frame);
-  return buf;
-}
-
 void runReference(const ReferenceOptions& opts) {
   Scene scene = loadScene(opts.scene);
   Walkthrough path = readWalkthrough(opts.walkthrough);
@@ -48,13 +43,8 @@ void runReference(const ReferenceOptions& opts) {
   auto ctx = createContext(opts.context);
   Renderer renderer(ctx->gl(), opts.view.width, opts.view.height);
 
-  // Upload every geometry and texture once; instances share them.
-  std::vector<GLuint> textures;
-  for (uint32_t t = 0; t < scene.manifest.textures; ++t)
-    textures.push_back(renderer.uploadTexture(loadTexture(scene, t)));
-  std::vector<GpuMesh> meshes(scene.manifest.geometries);
-  for (uint32_t g = 0; g < scene.manifest.geometries; ++g)
-    meshes[g] = renderer.upload(loadGeometry(scene, g));
+  // Every geometry is uploaded once, on first use; instances share it.
+  KeepAllMeshProvider meshes(scene, renderer);
 
   std::string csv = "frame,frame_ms,draw_ms,objects,triangles\n";
   double near = opts.view.near > 0 ? opts.view.near : defaultNear(scene);
@@ -65,9 +55,10 @@ void runReference(const ReferenceOptions& opts) {
     Camera cam = cameraAt(path.points[f], opts.view.width, opts.view.height, opts.view.fovy_deg, near);
     renderer.beginFrame(cam, full);
     uint64_t tris = 0;
-    for (const ObjectBounds& o : scene.objects) {
-      renderer.draw(meshes[o.geometry], o.transform, textures);
-      tris += meshes[o.geometry].triangles;
+    for (const ObjectBounds& o : scene.objects) {  // ascending object index
+      const GpuMesh& mesh = meshes.acquire(o.geometry);
+      renderer.draw(mesh, o.transform, meshes.textures());
+      tris += mesh.triangles;
     }
     renderer.readPixels(full, &pixels);
     double draw_ms = msSince(t0);
@@ -83,8 +74,6 @@ void runReference(const ReferenceOptions& opts) {
                    frame_ms);
   }
   if (opts.progress) std::fprintf(stderr, "\n");
-  for (auto& m : meshes) renderer.release(m);
-  for (GLuint t : textures) renderer.releaseTexture(t);
 }
 
 }  // namespace dmmr

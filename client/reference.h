@@ -5,17 +5,10 @@
 
 #include <string>
 
+#include "camera.h"
 #include "gl_context.h"
 
 namespace dmmr {
-
-// Image and camera settings every renderer of a run must share.
-struct ViewOptions {
-  int width = 1024;
-  int height = 1024;
-  double fovy_deg = 45;
-  double near = 0;  // 0: defaultNear(scene)
-};
 
 struct ReferenceOptions {
   std::string scene;
@@ -29,7 +22,5 @@ struct ReferenceOptions {
 
 // Throws Error on bad input; frames already written stay on disk.
 void runReference(const ReferenceOptions& opts);
-
-std::string frameFileName(size_t frame);  // "frame_000042.png"
 
 }  // namespace dmmr

@@ -36,6 +36,14 @@ std::array<Plane, 5> frustumPlanes(const Camera& c);
 }  // namespace dmmr
 
 namespace dmmr {
+// Image and camera settings every renderer of a run must share.
+struct ViewOptions {
+  int width = 1024;
+  int height = 1024;
+  double fovy_deg = 45;
+  double near = 0;  // 0: the scene's default (see defaultNear in scene.h)
+};
+
 // The camera for one walkthrough control point and an image size.
 inline Camera cameraAt(const ControlPoint& p, int width, int height, double fovy_deg, double near) {
   return Camera{p.position, p.rotation, fovy_deg, double(width) / double(height), near};

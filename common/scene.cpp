@@ -42,6 +42,7 @@ void validateReferences(const Scene& s) {
   if (!s.occluders.empty() && s.occluders.back() >= s.objects.size())
     throw Error(fileError(o, "names object " + std::to_string(s.occluders.back()) +
                                  " beyond the object count"));
+  if (s.skeleton.empty()) return;  // not loaded
   const std::string k = s.dir + "/skeleton.bin";
   std::vector<uint8_t> seen(s.objects.size(), 0);
   for (const auto& n : s.skeleton) {
@@ -56,14 +57,15 @@ void validateReferences(const Scene& s) {
 
 }  // namespace
 
-Scene loadScene(const std::string& dir) {
+Scene loadScene(const std::string& dir, bool with_skeleton) {
   Scene s;
   s.dir = dir;
   const std::string mpath = dir + "/manifest.json";
   if (!std::filesystem::is_directory(dir)) throw Error(fileError(dir, "is not a scene directory"));
   std::vector<uint8_t> m = readFileBytes(mpath);
   s.manifest = decodeManifest(std::string(m.begin(), m.end()), mpath);
-  s.skeleton = decodeSkeleton(readChecked(s, "skeleton.bin"), dir + "/skeleton.bin");
+  if (with_skeleton)
+    s.skeleton = decodeSkeleton(readChecked(s, "skeleton.bin"), dir + "/skeleton.bin");
   s.objects = decodeBounds(readChecked(s, "bounds.bin"), dir + "/bounds.bin");
   s.occluders = decodeOccluders(readChecked(s, "occluders.bin"), dir + "/occluders.bin");
   validateReferences(s);

@@ -22,7 +22,8 @@ struct Scene {
 // CRC against the manifest and the references between them (object and
 // geometry indices in range, counts equal to the manifest's). Throws Error
 // naming the file and the problem.
-Scene loadScene(const std::string& dir);
+// Clients pass with_skeleton = false: they never traverse it.
+Scene loadScene(const std::string& dir, bool with_skeleton = true);
 
 // Reads one geometry (or texture) file, checked against the manifest and the
 // scene's texture count. Throws Error naming the file.

@@ -1,6 +1,7 @@
 #include "walkthrough.h"
 
 #include <charconv>
+#include <cstdio>
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -79,6 +80,12 @@ std::string formatWalkthrough(const Walkthrough& w) {
 
 void writeWalkthrough(const std::string& path, const Walkthrough& w) {
   writeFileAtomic(path, formatWalkthrough(w));
+}
+
+std::string frameFileName(size_t index) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "frame_%06zu.png", index);
+  return buf;
 }
 
 Quatd lookAtRotation(Vec3d eye, Vec3d target, Vec3d up) {

@@ -33,6 +33,9 @@ std::string formatWalkthrough(const Walkthrough& w);
 // Writes atomically (temporary file, then rename).
 void writeWalkthrough(const std::string& path, const Walkthrough& w);
 
+// The file name of frame `index` (one per control point): "frame_000042.png".
+std::string frameFileName(size_t index);
+
 // Orientation of a camera at `eye` looking at `target` with `up` roughly up.
 Quatd lookAtRotation(Vec3d eye, Vec3d target, Vec3d up);
 

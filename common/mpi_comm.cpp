@@ -1,0 +1,82 @@
+#include "mpi_comm.h"
+
+#include <mpi.h>
+
+#include <climits>
+
+#include "error.h"
+
+namespace dmmr {
+
+namespace {
+
+void check(int rc, const char* call) {
+  if (rc == MPI_SUCCESS) return;
+  char msg[MPI_MAX_ERROR_STRING] = {};
+  int len = 0;
+  MPI_Error_string(rc, msg, &len);
+  throw Error(std::string(call) + " failed: " + msg);
+}
+
+}  // namespace
+
+const char* tagName(Tag t) {
+  switch (t) {
+    case Tag::Hello: return "Hello";
+    case Tag::Job: return "Job";
+    case Tag::SubFrame: return "SubFrame";
+    case Tag::Error: return "Error";
+    case Tag::Shutdown: return "Shutdown";
+    case Tag::Bye: return "Bye";
+  }
+  return "Unknown";
+}
+
+Comm::Comm(int* argc, char*** argv) {
+  int provided = 0;
+  check(MPI_Init_thread(argc, argv, MPI_THREAD_MULTIPLE, &provided), "MPI_Init_thread");
+  check(MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN), "MPI_Comm_set_errhandler");
+  check(MPI_Comm_rank(MPI_COMM_WORLD, &rank_), "MPI_Comm_rank");
+  check(MPI_Comm_size(MPI_COMM_WORLD, &size_), "MPI_Comm_size");
+  if (provided < MPI_THREAD_MULTIPLE) {
+    MPI_Finalize();
+    throw Error("the MPI library does not provide MPI_THREAD_MULTIPLE");
+  }
+}
+
+Comm::~Comm() { MPI_Finalize(); }
+
+void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
+  if (bytes.size() > size_t(INT_MAX)) throw Error(std::string(tagName(tag)) + " message too large");
+  check(MPI_Send(bytes.data(), int(bytes.size()), MPI_BYTE, dest, int(tag), MPI_COMM_WORLD),
+        "MPI_Send");
+}
+
+Message Comm::recv(int source) {
+  // Matched probe: the message found is the one received, even when other
+  // threads receive too.
+  MPI_Status st;
+  MPI_Message handle;
+  check(MPI_Mprobe(source == kAnySource ? MPI_ANY_SOURCE : source, MPI_ANY_TAG, MPI_COMM_WORLD,
+                   &handle, &st),
+        "MPI_Mprobe");
+  int count = 0;
+  check(MPI_Get_count(&st, MPI_BYTE, &count), "MPI_Get_count");
+  Message m;
+  m.source = st.MPI_SOURCE;
+  m.tag = Tag(st.MPI_TAG);
+  m.bytes.resize(size_t(count));
+  check(MPI_Mrecv(m.bytes.data(), count, MPI_BYTE, &handle, MPI_STATUS_IGNORE), "MPI_Mrecv");
+  return m;
+}
+
+void Comm::broadcast(int root, int* value) {
+  check(MPI_Bcast(value, 1, MPI_INT, root, MPI_COMM_WORLD), "MPI_Bcast");
+}
+
+void Comm::abort(int code) {
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::abort();
+}
+
+}  // namespace dmmr

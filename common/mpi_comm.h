@@ -1,0 +1,52 @@
+// The one checked wrapper over MPI: every call's return code is checked and
+// turned into an Error naming the call; messages carry a Tag from one enum,
+// with a name for logs.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace dmmr {
+
+enum class Tag : int {
+  Hello = 1,     // client -> server at start: ready, or why not
+  Job = 2,       // server -> client: a frame's camera, region and objects
+  SubFrame = 3,  // client -> server: compressed pixels and stats
+  Error = 4,     // client -> server: a stage failed (text)
+  Shutdown = 5,  // server -> client: no more jobs
+  Bye = 6,       // client -> server: acknowledged shutdown, nothing more follows
+};
+const char* tagName(Tag t);
+inline constexpr int kAnySource = -1;
+
+struct Message {
+  int source = -1;
+  Tag tag = Tag::Hello;
+  std::vector<uint8_t> bytes;
+};
+
+class Comm {
+ public:
+  // Initialises MPI with MPI_THREAD_MULTIPLE (the server sends and receives
+  // on two threads); throws Error when the library cannot provide it.
+  Comm(int* argc, char*** argv);
+  ~Comm();  // MPI_Finalize
+  Comm(const Comm&) = delete;
+  Comm& operator=(const Comm&) = delete;
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+
+  void send(int dest, Tag tag, const std::vector<uint8_t>& bytes);
+  // Blocks for the next message from `source` (or kAnySource), any tag.
+  Message recv(int source);
+  void broadcast(int root, int* value);
+  // Ends every rank of the job at once; for when orderly shutdown is impossible.
+  [[noreturn]] void abort(int code);
+
+ private:
+  int rank_ = 0, size_ = 1;
+};
+
+}  // namespace dmmr

@@ -1,0 +1,52 @@
+// Messages between the server and the clients, encoded with explicit
+// little-endian fields and decoded strictly (a malformed message is an Error
+// naming the message, never a crash).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "camera.h"
+#include "compress.h"
+
+namespace dmmr {
+
+struct FrameJob {
+  uint32_t frame = 0;
+  Camera camera;
+  int width = 0, height = 0;      // the full frame
+  Rect region;                    // this client's scissor rectangle
+  std::vector<uint32_t> objects;  // ascending object indices to draw
+  friend bool operator==(const FrameJob&, const FrameJob&) = default;
+};
+
+struct ClientStats {
+  double load_ms = 0;      // reading and uploading geometry not yet resident
+  double render_ms = 0;    // drawing the object list (through glFinish)
+  double readback_ms = 0;  // reading the region's pixels
+  double compress_ms = 0;
+  uint64_t objects = 0, triangles = 0;
+  uint64_t bytes_raw = 0, bytes_sent = 0;
+  friend bool operator==(const ClientStats&, const ClientStats&) = default;
+};
+
+// The region's pixels as RGB8 rows, bottom row first, compressed with `codec`.
+struct SubFrame {
+  uint32_t frame = 0;
+  Rect region;
+  Codec codec = Codec::LZ4;
+  uint64_t raw_size = 0;
+  std::vector<uint8_t> data;
+  ClientStats stats;
+  friend bool operator==(const SubFrame&, const SubFrame&) = default;
+};
+
+std::vector<uint8_t> encodeJob(const FrameJob& j);
+FrameJob decodeJob(const std::vector<uint8_t>& bytes);
+std::vector<uint8_t> encodeSubFrame(const SubFrame& s);
+SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes);
+std::vector<uint8_t> encodeText(const std::string& s);
+std::string decodeText(const std::vector<uint8_t>& bytes);
+
+}  // namespace dmmr

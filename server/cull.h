@@ -1,0 +1,36 @@
+// Hierarchical frustum culling through the skeleton. Pure: plain data in,
+// object indices out; no MPI, no GL.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "camera.h"
+#include "formats.h"
+
+namespace dmmr {
+
+// The planes of a (sub-)frustum, inside when distance >= 0.
+using Planes = std::array<Plane, 5>;
+
+enum class Containment { Outside, Intersects, Inside };
+Containment classify(const Box3d& box, const Planes& planes);
+Containment classify(const Sphere3d& s, const Planes& planes);
+
+struct CullStats {
+  uint64_t nodes_visited = 0;
+  uint64_t objects = 0;
+  uint64_t triangles = 0;
+};
+
+// Appends to `out`, in ascending order, every object whose bounding volume
+// (box, and sphere where it is the tighter one) is not entirely outside the
+// planes. Subtrees whose box is outside are skipped; subtrees entirely inside
+// are taken without further tests. Conservative: nothing that can show is
+// dropped.
+void cullObjects(const std::vector<SkeletonNode>& skeleton,
+                 const std::vector<ObjectBounds>& objects, const Planes& planes,
+                 std::vector<uint32_t>* out, CullStats* stats = nullptr);
+
+}  // namespace dmmr

@@ -1,0 +1,54 @@
+// Load-balanced frustum division (Algorithm 1 of the DMMR paper), over plain
+// data: objects' pixel footprints and weights in, one screen region and object
+// list per client out. No MPI, no GL.
+#pragma once
+
+#include <cstdint>
+#include <ostream>
+#include <vector>
+
+#include "camera.h"
+#include "formats.h"
+
+namespace dmmr {
+
+// Pixel columns [x0, x1) and rows [y0, y1) (GL order, row 0 at the bottom)
+// that an object may touch.
+struct Footprint {
+  uint32_t object = 0;
+  int x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  uint64_t weight = 0;
+  friend bool operator==(const Footprint&, const Footprint&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const Footprint& f);
+
+// The conservative footprint of an object's bounds (its box, clipped to the
+// sphere's box where that is tighter, clipped at the near plane) for a
+// width x height frame: every pixel the object can cover, plus a one-pixel
+// margin against rounding. Returns false when it covers no pixel.
+bool footprint(const ObjectBounds& o, uint32_t index, const Camera& camera, int width, int height,
+               Footprint* out);
+
+struct Region {
+  Rect rect;
+  std::vector<uint32_t> objects;  // ascending object indices
+  uint64_t weight = 0;            // sum of the objects' weights
+  friend bool operator==(const Region&, const Region&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const Region& r);
+
+// Splits `frame` into exactly `clients` regions that tile it (no gap, no
+// overlap). Each split is a pixel line chosen, from prefix sums of the weights
+// of footprints starting left of it and suffix sums of those ending right of
+// it, to minimise |l - l*| + |r - r*| + min(nl, nr) |l/nl - r/nr|, where nl
+// and nr are the client counts of the two sides (the count is split in half,
+// odd counts unevenly) and l*, r* their share of the total. For two clients
+// this is the paper's |l-h| + |r-h| + |l-r|. Splits alternate between
+// vertical and horizontal lines, starting across the longer side; a side of
+// one pixel forces the other direction. Ties go to the line nearest the
+// area-proportional one. An object whose footprint straddles a split goes to
+// both sides. When the frame has fewer pixels than clients, the extra
+// clients get empty rectangles and no objects.
+std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients);
+
+}  // namespace dmmr

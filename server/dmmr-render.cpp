@@ -1,0 +1,64 @@
+// mpirun -np N+1 dmmr-render --scene DIR --walkthrough PATH --out DIR
+// Rank 0 is the server; ranks 1..N are clients.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <cstdlib>
+
+#include "client.h"
+#include "error.h"
+#include "server.h"
+
+int main(int argc, char** argv) {
+  dmmr::ServerOptions s;
+  dmmr::ClientOptions c;
+  std::string backend = "osmesa", codec = "lz4";
+  CLI::App app{"dmmr-render: distributed rendering of a walkthrough (rank 0 server, 1..N clients)"};
+  app.add_option("--scene", s.scene, "preprocessed scene directory")->required();
+  app.add_option("--walkthrough", s.walkthrough, "AnimationPath file")->required();
+  app.add_option("--out", s.out, "output directory for frame_NNNNNN.png")->required();
+  app.add_option("--stats", s.stats, "per-frame statistics CSV");
+  app.add_option("--width", s.view.width, "image width")->check(CLI::Range(1, 16384));
+  app.add_option("--height", s.view.height, "image height")->check(CLI::Range(1, 16384));
+  app.add_option("--fovy", s.view.fovy_deg, "vertical field of view, degrees")
+      ->check(CLI::Range(1.0, 179.0));
+  app.add_option("--near", s.view.near, "near plane distance (default: scene diagonal * 1e-5)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--in-flight", s.in_flight, "frames sent ahead of the last assembled")
+      ->check(CLI::Range(1, 16));
+  app.add_option("--backend", backend, "client GL backend: osmesa or egl")
+      ->check(CLI::IsMember({"osmesa", "egl"}));
+  app.add_option("--egl-device", c.context.egl_device, "EGL device index (-1: surfaceless)");
+  app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
+      ->check(CLI::IsMember({"lz4", "zlib", "none"}));
+  app.add_flag("!--no-progress", s.progress, "do not print progress");
+  // Only rank 0 prints usage errors (the rank is known before MPI starts).
+  const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
+  bool quiet = rankEnv && std::atoi(rankEnv) != 0;
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (quiet) return e.get_exit_code() == 0 ? 0 : 1;
+    return app.exit(e);
+  }
+  c.scene = s.scene;
+  c.view = s.view;
+  c.context.backend = dmmr::parseBackend(backend);
+  c.codec = dmmr::parseCodec(codec);
+
+  int status = 0;
+  try {
+    dmmr::Comm comm(&argc, &argv);
+    try {
+      status = comm.rank() == 0 ? dmmr::runServer(comm, s) : dmmr::runClient(comm, c);
+    } catch (const std::exception& e) {
+      // Past the handshake a lone failing rank cannot stop the others in
+      // order: end the whole job rather than leave ranks waiting.
+      std::fprintf(stderr, "dmmr-render: rank %d: %s\n", comm.rank(), e.what());
+      comm.abort(1);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dmmr-render: %s\n", e.what());
+    return 1;
+  }
+  return status;
+}

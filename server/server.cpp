@@ -1,0 +1,266 @@
+#include "server.h"
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "atomic_file.h"
+#include "error.h"
+#include "image.h"
+#include "plan.h"
+#include "protocol.h"
+#include "scene.h"
+#include "walkthrough.h"
+
+namespace dmmr {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msBetween(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// What the planning thread records for a frame, and what the assembler adds.
+struct FrameRecord {
+  Clock::time_point started;
+  double cull_ms = 0, divide_ms = 0, send_ms = 0;
+  uint64_t objects = 0, triangles = 0;
+  std::vector<uint64_t> region_objects;  // as planned, per client
+  Image image;                           // assembled RGBA, top row first
+  std::vector<ClientStats> clients;
+  int received = 0;
+};
+
+class Assembler {
+ public:
+  Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames)
+      : comm_(comm), opts_(opts), clients_(clients), frames_(frames) {
+    csv_ = "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
+           "objects_in_frustum,triangles_in_frustum";
+    for (int k = 1; k <= clients; ++k)
+      for (const char* c : {"objects", "triangles", "load_ms", "render_ms", "readback_ms",
+                            "compress_ms", "bytes_raw", "bytes_sent"})
+        csv_ += ",c" + std::to_string(k) + "_" + c;
+    csv_ += "\n";
+    last_done_ = Clock::now();
+  }
+
+  // Planning thread: registers a frame before its jobs go out.
+  void begin(uint32_t frame, FrameRecord rec) {
+    rec.image = Image::blank(opts_.view.width, opts_.view.height);
+    rec.clients.resize(size_t(clients_));
+    std::lock_guard<std::mutex> lock(mu_);
+    pending_[frame] = std::move(rec);
+  }
+
+  // Planning thread: blocks until fewer than `in_flight` frames are
+  // outstanding; false when the run failed.
+  bool waitForRoom(uint32_t frame) {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [&] { return failed_ || frame < assembled_ + uint32_t(opts_.in_flight); });
+    return !failed_;
+  }
+
+  void run() {
+    try {
+      while (assembled_ < frames_) {
+        Message m = comm_.recv(kAnySource);
+        if (m.tag == Tag::Error) {
+          fail("client " + std::to_string(m.source) + ": " + decodeText(m.bytes));
+          return;
+        }
+        if (m.tag != Tag::SubFrame)
+          throw Error(std::string("unexpected ") + tagName(m.tag) + " message from rank " +
+                      std::to_string(m.source));
+        accept(m.source, decodeSubFrame(m.bytes));
+      }
+    } catch (const std::exception& e) {
+      fail(std::string("server: ") + e.what());
+    }
+  }
+
+  void setSendMs(uint32_t frame, double ms) {
+    std::lock_guard<std::mutex> lock(mu_);
+    // The frame may already be assembled (its last sub-frame raced this
+    // call); then its row went out without the send time.
+    if (auto it = pending_.find(frame); it != pending_.end()) it->second.send_ms = ms;
+  }
+
+  void markFailed(const std::string& why) { fail(why); }
+  bool failed() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    return failed_;
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  void accept(int rank, const SubFrame& sf) {
+    auto t0 = Clock::now();
+    FrameRecord* rec;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto it = pending_.find(sf.frame);
+      if (it == pending_.end())
+        throw Error("rank " + std::to_string(rank) + " sent frame " + std::to_string(sf.frame) +
+                    ", which is not in flight");
+      rec = &it->second;
+    }
+    const Rect& r = sf.region;
+    if (r.x < 0 || r.y < 0 || r.x1() > rec->image.width || r.y1() > rec->image.height)
+      throw Error("rank " + std::to_string(rank) + " sent a region outside the frame");
+    std::vector<uint8_t> rgb = decompress(sf.codec, sf.data.data(), sf.data.size(), sf.raw_size);
+    for (int y = 0; y < r.h; ++y) {  // GL rows (bottom first) into image rows (top first)
+      uint8_t* dst = rec->image.pixel(r.x, rec->image.height - 1 - (r.y + y));
+      const uint8_t* src = rgb.data() + size_t(y) * size_t(r.w) * 3;
+      for (int x = 0; x < r.w; ++x, dst += 4, src += 3) {
+        dst[0] = src[0];
+        dst[1] = src[1];
+        dst[2] = src[2];
+        dst[3] = 255;
+      }
+    }
+    rec->clients[size_t(rank - 1)] = sf.stats;
+    assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
+    if (++rec->received == clients_) finishFrame(sf.frame, *rec);
+  }
+
+  void finishFrame(uint32_t frame, FrameRecord& rec) {
+    auto tw = Clock::now();
+    writePng(opts_.out + "/" + frameFileName(frame), rec.image);
+    auto done = Clock::now();
+    std::ostringstream row;
+    row.setf(std::ios::fixed);
+    row.precision(3);
+    row << frame << "," << msBetween(last_done_, done) << "," << msBetween(rec.started, done) << ","
+        << rec.cull_ms << "," << rec.divide_ms << "," << rec.send_ms << "," << assemble_ms_[frame]
+        << "," << msBetween(tw, done) << "," << rec.objects << "," << rec.triangles;
+    for (const ClientStats& c : rec.clients)
+      row << "," << c.objects << "," << c.triangles << "," << c.load_ms << "," << c.render_ms
+          << "," << c.readback_ms << "," << c.compress_ms << "," << c.bytes_raw << ","
+          << c.bytes_sent;
+    csv_ += row.str() + "\n";
+    if (!opts_.stats.empty()) writeFileAtomic(opts_.stats, csv_);  // flushed frame by frame
+    last_done_ = done;
+    if (opts_.progress)
+      std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
+    std::lock_guard<std::mutex> lock(mu_);
+    pending_.erase(frame);
+    assemble_ms_.erase(frame);
+    ++assembled_;
+    cv_.notify_all();
+  }
+
+  void fail(const std::string& why) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!failed_) error_ = why;
+    failed_ = true;
+    cv_.notify_all();
+  }
+
+  Comm& comm_;
+  const ServerOptions& opts_;
+  const int clients_;
+  const size_t frames_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::map<uint32_t, FrameRecord> pending_;
+  std::map<uint32_t, double> assemble_ms_;
+  uint32_t assembled_ = 0;
+  bool failed_ = false;
+  std::string error_;
+  std::string csv_;
+  Clock::time_point last_done_;
+};
+
+// Tells every client to stop and waits until each has said Bye, receiving
+// (and dropping) whatever they still send, so no rank is left blocked.
+void shutdownClients(Comm& comm, int clients) {
+  for (int k = 1; k <= clients; ++k) comm.send(k, Tag::Shutdown, {});
+  for (int byes = 0; byes < clients;) byes += comm.recv(kAnySource).tag == Tag::Bye;
+}
+
+}  // namespace
+
+int runServer(Comm& comm, const ServerOptions& opts) {
+  const int clients = comm.size() - 1;
+  if (clients < 1) {
+    std::fprintf(stderr, "dmmr-render: needs at least one client: run it under mpirun with "
+                         "-np 2 or more (rank 0 is the server)\n");
+    return 1;
+  }
+  Scene scene;
+  Walkthrough path;
+  std::string problem;
+  try {
+    scene = loadScene(opts.scene);
+    path = readWalkthrough(opts.walkthrough);
+    std::filesystem::create_directories(opts.out);
+  } catch (const std::exception& e) {
+    problem = e.what();
+  }
+  int ok = problem.empty() ? 1 : 0;
+  comm.broadcast(0, &ok);
+  if (!ok) {
+    std::fprintf(stderr, "dmmr-render: server (rank 0): %s\n", problem.c_str());
+    return 1;
+  }
+  // Every client reports whether it is ready (scene, context, renderer).
+  std::map<int, std::string> problems;
+  for (int k = 0; k < clients; ++k) {
+    Message m = comm.recv(kAnySource);
+    if (m.tag != Tag::Hello) throw Error(std::string("expected Hello, got ") + tagName(m.tag));
+    if (!m.bytes.empty()) problems[m.source] = decodeText(m.bytes);
+  }
+  int go = problems.empty() ? 1 : 0;
+  comm.broadcast(0, &go);
+  if (!go) {
+    for (auto& [rank, text] : problems)
+      std::fprintf(stderr, "dmmr-render: client %d (rank %d): %s\n", rank, rank, text.c_str());
+    return 1;
+  }
+
+  const ViewOptions& v = opts.view;
+  double near = v.near > 0 ? v.near : defaultNear(scene);
+  Assembler assembler(comm, opts, clients, path.points.size());
+  std::thread assembling([&] { assembler.run(); });
+  for (uint32_t f = 0; f < path.points.size(); ++f) {
+    if (!assembler.waitForRoom(f)) break;
+    FrameRecord rec;
+    rec.started = Clock::now();
+    Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
+    FramePlan plan = planFrame(scene, cam, v.width, v.height, clients);
+    rec.cull_ms = plan.cull_ms;
+    rec.divide_ms = plan.divide_ms;
+    rec.objects = plan.objects_in_frustum;
+    rec.triangles = plan.triangles_in_frustum;
+    auto ts = Clock::now();
+    assembler.begin(f, std::move(rec));
+    try {
+      for (int k = 0; k < clients; ++k) {
+        FrameJob job{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
+                     std::move(plan.regions[size_t(k)].objects)};
+        comm.send(k + 1, Tag::Job, encodeJob(job));
+      }
+    } catch (const std::exception& e) {
+      assembler.markFailed(std::string("server: ") + e.what());
+      break;
+    }
+    assembler.setSendMs(f, msBetween(ts, Clock::now()));
+  }
+  assembling.join();
+  if (opts.progress) std::fprintf(stderr, "\n");
+  shutdownClients(comm, clients);
+  if (assembler.failed()) {
+    std::fprintf(stderr, "dmmr-render: %s\n", assembler.error().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace dmmr

@@ -1,0 +1,27 @@
+// The dmmr server (rank 0): holds the scene without geometry, plans each
+// frame (culling, division), sends the jobs, and assembles the sub-frames on
+// a separate thread into PNG frames and a statistics CSV.
+#pragma once
+
+#include <string>
+
+#include "camera.h"
+#include "mpi_comm.h"
+
+namespace dmmr {
+
+struct ServerOptions {
+  std::string scene;
+  std::string walkthrough;
+  std::string out;    // frames: frame_NNNNNN.png
+  std::string stats;  // optional per-frame CSV
+  ViewOptions view;
+  int in_flight = 2;  // frames sent ahead of the last one assembled
+  bool progress = true;
+};
+
+// Returns the process exit status; every message it prints names the rank
+// that found the problem.
+int runServer(Comm& comm, const ServerOptions& opts);
+
+}  // namespace dmmr
