@@ -29,6 +29,12 @@ std::string sharedModelsDir() {
 
 std::string tool(const std::string& name) { return std::string(DMMR_BIN_DIR) + "/" + name; }
 
+std::string mpirun(int np) {
+  std::string cmd = "mpirun --oversubscribe -np " + std::to_string(np);
+  if (::geteuid() == 0) cmd += " --allow-run-as-root";
+  return cmd;
+}
+
 int run(const std::string& command) {
   int s = std::system(command.c_str());
   return WIFEXITED(s) ? WEXITSTATUS(s) : -1;

@@ -26,6 +26,9 @@ class TempDir {
 std::string sharedModelsDir();
 // build/bin/NAME.
 std::string tool(const std::string& name);
+// "mpirun -np N" with the flags this machine needs (--oversubscribe, and
+// --allow-run-as-root when running as root).
+std::string mpirun(int np);
 // Runs a shell command; returns its exit status (-1 when it did not exit).
 int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.

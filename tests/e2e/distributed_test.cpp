@@ -1,0 +1,151 @@
+// End to end: mpirun dmmr-render against dmmr-reference on a small scene.
+// The distributed frames must be pixel-identical to the reference (tolerance
+// zero), and failures must end the run with one clear message, no hang.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <osg/Geode>
+#include <osg/MatrixTransform>
+#include <osg/ShapeDrawable>
+#include <osgDB/WriteFile>
+
+#include "compare.h"
+#include "preprocess.h"
+#include "walkthrough.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace dmmr;
+using dmmr::test::TempDir;
+
+namespace {
+
+// A grid of boxes, spheres and cylinders, some overlapping, with a walkthrough
+// that flies past them: plenty of objects straddling the split lines.
+struct SmallScene {
+  TempDir dir;
+  std::string scene, path, reference;
+  SmallScene() {
+    osg::ref_ptr<osg::Group> root = new osg::Group;
+    osg::ref_ptr<osg::Geode> shared = new osg::Geode;  // instanced below
+    shared->addDrawable(new osg::ShapeDrawable(new osg::Cylinder({0, 0, 0}, 0.3f, 1.5f)));
+    for (int i = 0; i < 40; ++i) {
+      auto* g = new osg::Geode;
+      osg::Shape* s = (i % 3 == 0)   ? static_cast<osg::Shape*>(new osg::Box({0, 0, 0}, 0.9f))
+                      : (i % 3 == 1) ? static_cast<osg::Shape*>(new osg::Sphere({0, 0, 0}, 0.5f))
+                                     : static_cast<osg::Shape*>(new osg::Cone({0, 0, 0}, 0.4f, 1.f));
+      auto* sd = new osg::ShapeDrawable(s);
+      sd->setColor(osg::Vec4(0.3f + 0.017f * i, 0.9f - 0.02f * i, 0.4f + 0.01f * (i % 7), 1.f));
+      g->addDrawable(sd);
+      auto* t = new osg::MatrixTransform(osg::Matrixd::rotate(0.4 * i, osg::Vec3d(1, 1, 0)) *
+                                         osg::Matrixd::translate(1.3 * (i % 8), 1.4 * (i / 8), 0));
+      t->addChild(g);
+      if (i % 5 == 0) t->addChild(shared);
+      root->addChild(t);
+    }
+    std::string model = dir / "shapes.osgb";
+    EXPECT_TRUE(osgDB::writeNodeFile(*root, model));
+    PreprocessOptions o;
+    o.inputs = {model};
+    o.out = scene = dir / "scene";
+    o.progress = false;
+    preprocess(o);
+    Walkthrough w;
+    for (int f = 0; f < 4; ++f) {
+      Vec3d eye{-2.0 + 2.5 * f, -6.0, 3.0};
+      w.points.push_back({0.1 * f, eye, lookAtRotation(eye, {4.5, 3, 0}, {0, 0, 1})});
+    }
+    writeWalkthrough(path = dir / "path", w);
+    reference = dir / "reference";
+    EXPECT_EQ(test::run(test::tool("dmmr-reference") + " --no-progress --width 160 --height 120" +
+                        " --scene " + scene + " --walkthrough " + path + " --out " + reference),
+              0);
+  }
+  std::string render(int clients, const std::string& out, const std::string& extra = "",
+                     int* status = nullptr) {
+    int s = 0;
+    std::string log = test::runCapture(
+        "timeout 120 " + test::mpirun(clients + 1) + " " + test::tool("dmmr-render") +
+            " --no-progress --width 160 --height 120 --scene " + scene + " --walkthrough " + path +
+            " --out " + out + " " + extra,
+        &s);
+    if (status) *status = s;
+    else EXPECT_EQ(s, 0) << log;
+    return log;
+  }
+};
+
+SmallScene& smallScene() {
+  static SmallScene* s = new SmallScene;  // built once per test binary
+  return *s;
+}
+
+}  // namespace
+
+class Distributed : public testing::TestWithParam<int> {};
+
+TEST_P(Distributed, FramesArePixelIdenticalToTheReference) {
+  SmallScene& s = smallScene();
+  int clients = GetParam();
+  std::string out = s.dir / ("frames" + std::to_string(clients));
+  s.render(clients, out, "--stats " + out + ".csv");
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+  // The stats CSV has the documented columns and one row per frame.
+  std::ifstream csv(out + ".csv");
+  std::string header, line;
+  std::getline(csv, header);
+  for (const char* col : {"frame", "frame_ms", "cull_ms", "divide_ms", "assemble_ms",
+                          "objects_in_frustum", "triangles_in_frustum"})
+    EXPECT_NE(header.find(col), std::string::npos) << col;
+  std::string last = "c" + std::to_string(clients) + "_bytes_sent";
+  EXPECT_NE(header.find(last), std::string::npos) << header;
+  int rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, 4);
+}
+
+INSTANTIATE_TEST_SUITE_P(Clients, Distributed, testing::Values(1, 2, 3, 4, 7));
+
+TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "zlib";
+  s.render(2, out, "--compress zlib");
+  for (const FrameDiff& d : compareDirectories(s.reference, out))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+}
+
+TEST(DistributedErrors, ClientWithoutAContextStopsTheRunWithItsMessage) {
+  SmallScene& s = smallScene();
+  int status = 0;
+  std::string log = s.render(2, s.dir / "nodevice", "--backend egl --egl-device 99", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung";
+  EXPECT_NE(log.find("client 1 (rank 1): egl:"), std::string::npos) << log;
+}
+
+TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
+  SmallScene& s = smallScene();
+  std::string bad = s.dir / "badscene";
+  fs::copy(s.scene, bad, fs::copy_options::recursive);
+  {
+    std::fstream f(bad + "/skeleton.bin", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(40);
+    f.put('\x55');
+  }
+  int status = 0;
+  std::string log = test::runCapture(
+      "timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+          " --no-progress --width 64 --height 48 --scene " + bad + " --walkthrough " + s.path +
+          " --out " + (s.dir / "bad"),
+      &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung";
+  size_t first = log.find("skeleton.bin");
+  ASSERT_NE(first, std::string::npos) << log;
+  EXPECT_EQ(log.find("skeleton.bin", first + 1), std::string::npos) << "reported more than once:\n"
+                                                                      << log;
+  EXPECT_NE(log.find("server (rank 0)"), std::string::npos) << log;
+}
