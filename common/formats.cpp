@@ -134,6 +134,7 @@ std::vector<SkeletonNode> decodeSkeleton(const std::vector<uint8_t>& file,
   if (n == 0) r.fail("skeleton has no nodes");
   if (n > r.remaining() / 18) r.fail("truncated: node count exceeds the file");
   std::vector<SkeletonNode> nodes(n);
+  std::vector<uint32_t> open;  // the nodes whose subtrees enclose node i, outermost first
   for (uint32_t i = 0; i < n; ++i) {
     SkeletonNode& s = nodes[i];
     uint8_t kind = r.u8("node kind");
@@ -146,8 +147,10 @@ std::vector<SkeletonNode> decodeSkeleton(const std::vector<uint8_t>& file,
     if (hasBox > 1) r.fail(at("node", i) + ": box flag must be 0 or 1");
     if (hasBox) s.box = getBox(r, "node box");
     s.name = r.str("name", 4096);
-    // Structure: pre-order, parents before children, subtrees nested.
-    if (i == 0 ? s.parent != kNone : (s.parent >= i || i >= nodes[s.parent].end))
+    // Structure: pre-order, parents before children, subtrees nested: the
+    // parent is the innermost subtree still open at node i.
+    while (!open.empty() && nodes[open.back()].end <= i) open.pop_back();
+    if (i == 0 ? s.parent != kNone : (open.empty() || s.parent != open.back()))
       r.fail(at("node", i) + ": parent " + std::to_string(s.parent) + " is not an enclosing node");
     if (s.end <= i || s.end > n || (i > 0 && s.end > nodes[s.parent].end))
       r.fail(at("node", i) + ": subtree end " + std::to_string(s.end) + " out of range");
@@ -157,6 +160,7 @@ std::vector<SkeletonNode> decodeSkeleton(const std::vector<uint8_t>& file,
       r.fail(at("node", i) + ": object index present exactly on object nodes");
     if (s.kind == NodeKind::Object && s.end != i + 1)
       r.fail(at("node", i) + ": object node with children");
+    open.push_back(i);
   }
   if (nodes[0].end != n) r.fail("root does not span all nodes");
   r.finish();
@@ -359,10 +363,11 @@ Manifest decodeManifest(const std::string& text, const std::string& path) {
   if (j.is_discarded()) R.fail("manifest is not valid JSON");
   if (R.str(j, "format") != "dmmr-scene") R.fail("not a dmmr scene manifest");
   Manifest m;
-  m.version = uint32_t(R.u64(j, "version"));
-  if (m.version != Manifest::kVersion)
-    R.fail("unsupported manifest version " + std::to_string(m.version) +
+  uint64_t version = R.u64(j, "version");  // compared before narrowing: 2^32 + 1 is not 1
+  if (version != Manifest::kVersion)
+    R.fail("unsupported manifest version " + std::to_string(version) +
            " (this build reads version " + std::to_string(Manifest::kVersion) + ")");
+  m.version = uint32_t(version);
   const json& c = R.field(j, "counts");
   m.objects = R.u64(c, "objects");
   m.geometries = R.u64(c, "geometries");

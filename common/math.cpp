@@ -80,6 +80,8 @@ Vec3d Mat4d::transformVector(Vec3d v) const {
 double Mat4d::maxScale() const {
   // Spectral norm of the 3x3 part: sqrt of the largest eigenvalue of A^T A,
   // in closed form for symmetric 3x3 matrices, nudged up to stay conservative.
+  // The closed form loses precision in acos near -1, when the two largest
+  // eigenvalues nearly coincide: it then returns up to ~1e-8 too little.
   double a[3][3];
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
@@ -105,7 +107,7 @@ double Mat4d::maxScale() const {
     double phi = std::acos(std::clamp(det / 2, -1.0, 1.0)) / 3;
     top = q + 2 * p * std::cos(phi);
   }
-  return std::sqrt(std::max(top, 0.0)) * (1 + 1e-9);
+  return std::sqrt(std::max(top, 0.0)) * (1 + 1e-7);
 }
 
 Mat4d operator*(const Mat4d& a, const Mat4d& b) {

@@ -199,7 +199,8 @@ std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame,
   std::vector<const Footprint*> inside;
   inside.reserve(items.size());
   for (const Footprint& f : items)
-    if (f.x0 < frame.x1() && f.x1 > frame.x && f.y0 < frame.y1() && f.y1 > frame.y)
+    if (f.x0 < f.x1 && f.y0 < f.y1 &&  // a footprint with no pixels touches no region
+        f.x0 < frame.x1() && f.x1 > frame.x && f.y0 < frame.y1() && f.y1 > frame.y)
       inside.push_back(&f);
   divide(inside, frame, frame.w >= frame.h, clients, &out);
   return out;

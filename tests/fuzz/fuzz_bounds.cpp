@@ -1,0 +1,14 @@
+// libFuzzer target for decodeBounds (common/formats.h).
+#include <cstddef>
+#include <cstdint>
+
+#include "formats.h"
+#include "fuzz_support.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  dmmr::fuzz::fuzzContainerReader(
+      data, size,
+      [](const std::vector<uint8_t>& f, const std::string& p) { return dmmr::decodeBounds(f, p); },
+      [](const auto& v) { return dmmr::encodeBounds(v); });
+  return 0;
+}

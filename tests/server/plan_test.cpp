@@ -1,0 +1,165 @@
+// Tests for planFrame() (server/plan.h) on a Scene built in memory: a town of
+// boxes on a grid under row groups. The regions tile the frame, every culled
+// object with a footprint lands in exactly the regions it overlaps, and every
+// point of an object in view is drawn by the client owning its pixel.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "camera.h"
+#include "cull.h"
+#include "plan.h"
+#include "server_test_util.h"
+
+namespace dmmr {
+namespace {
+
+using test::Rng;
+
+// rows x cols boxes of random size (up to 2 units) on a 4-unit grid in the
+// x-z plane, one group per row under a root group; weights 1..10000.
+Scene gridScene(Rng& rng, int rows, int cols) {
+  Scene s;
+  s.dir = "(in memory)";
+  s.skeleton.push_back(SkeletonNode{NodeKind::Group, kNone, 0, kNone, Box3d{}, "root"});
+  for (int r = 0; r < rows; ++r) {
+    uint32_t group = uint32_t(s.skeleton.size());
+    s.skeleton.push_back(SkeletonNode{NodeKind::Group, 0, 0, kNone, Box3d{}, "row"});
+    for (int c = 0; c < cols; ++c) {
+      ObjectBounds o;
+      Vec3d centre{c * 4.0, rng.real(0, 3), -r * 4.0};
+      Vec3d half{rng.real(0.1, 1), rng.real(0.1, 3), rng.real(0.1, 1)};
+      o.box = Box3d{centre - half, centre + half};
+      o.sphere = Sphere3d{centre, length(half)};
+      o.use_box = true;
+      o.weight = uint64_t(rng.integer(1, 10000));
+      uint32_t index = uint32_t(s.objects.size());
+      s.objects.push_back(o);
+      s.skeleton.push_back(SkeletonNode{NodeKind::Object, group, uint32_t(s.skeleton.size()) + 1,
+                                        index, o.box, "box"});
+      s.skeleton[group].box.expand(o.box);
+      s.manifest.triangles += o.weight;
+    }
+    s.skeleton[group].end = uint32_t(s.skeleton.size());
+    s.skeleton[0].box.expand(s.skeleton[group].box);
+  }
+  s.skeleton[0].end = uint32_t(s.skeleton.size());
+  s.manifest.objects = s.objects.size();
+  s.manifest.geometries = 1;
+  s.manifest.bounds = s.skeleton[0].box;
+  return s;
+}
+
+// A camera somewhere above or around the grid, looking roughly at it.
+Camera randomCamera(Rng& rng, const Scene& s) {
+  Camera c;
+  Box3d b = s.manifest.bounds;
+  c.eye = rng.inBox(Box3d{b.lo - Vec3d{20, 0, 20}, b.hi + Vec3d{20, 40, 20}});
+  c.rotation = rng.rotation();
+  c.fovy_deg = rng.real(30, 90);
+  c.aspect = 4.0 / 3.0;
+  c.near = 0.05;
+  return c;
+}
+
+TEST(PlanFrame, RegionsTileTheFrameAndHoldEveryCulledObjectWithAFootprint) {
+  Rng rng(31);
+  Scene scene = gridScene(rng, 30, 30);
+  const int width = 640, height = 480;
+  const Rect frame{0, 0, width, height};
+  int planned = 0;
+  for (int view = 0; view < 60; ++view) {
+    Camera camera = randomCamera(rng, scene);
+    int clients = rng.integer(1, 9);
+    SCOPED_TRACE(::testing::Message()
+                 << "view " << view << " " << camera << ", " << clients << " clients");
+    FramePlan plan = planFrame(scene, camera, width, height, clients);
+    ASSERT_TRUE(test::tilesFrame(plan.regions, frame, clients));
+
+    std::vector<uint32_t> culled;
+    CullStats cs;
+    cullObjects(scene.skeleton, scene.objects, frustumPlanes(camera), &culled, &cs);
+    EXPECT_EQ(plan.objects_in_frustum, culled.size());
+    EXPECT_EQ(plan.triangles_in_frustum, cs.triangles);
+    EXPECT_GE(plan.cull_ms, 0);
+    EXPECT_GE(plan.divide_ms, 0);
+
+    std::vector<Footprint> items;
+    Footprint f;
+    for (uint32_t i : culled)
+      if (footprint(scene.objects[i], i, camera, width, height, &f)) items.push_back(f);
+    EXPECT_TRUE(test::assignsObjects(items, plan.regions));
+    for (const Footprint& it : items) {
+      bool held = false;
+      for (const Region& r : plan.regions)
+        held = held || std::binary_search(r.objects.begin(), r.objects.end(), it.object);
+      EXPECT_TRUE(held) << it << " is in no region";
+    }
+    uint64_t listed = 0;
+    for (const Region& r : plan.regions) listed += r.objects.size();
+    planned += listed > 0;
+  }
+  EXPECT_GT(planned, 10);  // enough views saw part of the town
+}
+
+TEST(PlanFrame, EveryPointInViewIsDrawnByTheClientOwningItsPixel) {
+  Rng rng(32);
+  Scene scene = gridScene(rng, 20, 20);
+  const int width = 320, height = 240;
+  int checked = 0;
+  for (int view = 0; view < 40; ++view) {
+    Camera camera = randomCamera(rng, scene);
+    int clients = rng.integer(2, 8);
+    FramePlan plan = planFrame(scene, camera, width, height, clients);
+    for (uint32_t i = 0; i < scene.objects.size(); ++i)
+      for (int k = 0; k < 10; ++k) {
+        Vec3d p = rng.inBox(scene.objects[i].box);
+        if (!test::inView(camera, p, width, height)) continue;
+        test::Projected q = test::project(camera, p, width, height);
+        int px = test::pixelOf(q.x, width), py = test::pixelOf(q.y, height);
+        int owner = test::regionAt(plan.regions, px, py);
+        ASSERT_GE(owner, 0) << "pixel (" << px << ", " << py << ") belongs to no region";
+        const std::vector<uint32_t>& list = plan.regions[size_t(owner)].objects;
+        EXPECT_TRUE(std::binary_search(list.begin(), list.end(), i))
+            << "view " << view << ": object " << i << " shows at pixel (" << px << ", " << py
+            << ") of region " << plan.regions[size_t(owner)] << " but is not listed there";
+        ++checked;
+      }
+  }
+  EXPECT_GT(checked, 1000);
+}
+
+TEST(PlanFrame, ACameraFacingAwayFromTheSceneGivesEmptyRegions) {
+  Rng rng(33);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera camera;  // in front of the grid (which lies towards -Z), looking along +Z
+  camera.eye = {20, 2, 10};
+  camera.rotation = Quatd{0, 1, 0, 0};  // half a turn about Y
+  FramePlan plan = planFrame(scene, camera, 200, 100, 4);
+  ASSERT_TRUE(test::tilesFrame(plan.regions, Rect{0, 0, 200, 100}, 4));
+  EXPECT_EQ(plan.objects_in_frustum, 0u);
+  EXPECT_EQ(plan.triangles_in_frustum, 0u);
+  for (const Region& r : plan.regions) EXPECT_TRUE(r.objects.empty()) << r;
+}
+
+TEST(PlanFrame, OneClientGetsTheWholeFrameAndEveryVisibleObject) {
+  Rng rng(34);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera camera;  // high above the grid's middle, looking straight down
+  camera.eye = {18, 200, -18};
+  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};  // -90 degrees about X
+  camera.fovy_deg = 40;
+  FramePlan plan = planFrame(scene, camera, 256, 256, 1);
+  ASSERT_EQ(plan.regions.size(), 1u);
+  EXPECT_EQ(plan.regions[0].rect, (Rect{0, 0, 256, 256}));
+  std::vector<uint32_t> every(scene.objects.size());
+  for (uint32_t i = 0; i < every.size(); ++i) every[i] = i;
+  EXPECT_EQ(plan.regions[0].objects, every);
+  EXPECT_EQ(plan.regions[0].weight, scene.manifest.triangles);
+  EXPECT_EQ(plan.objects_in_frustum, scene.objects.size());
+}
+
+}  // namespace
+}  // namespace dmmr
