@@ -11,6 +11,7 @@ packages=(
   libmeshoptimizer-dev libcli11-dev nlohmann-json3-dev
   googletest libgtest-dev
   clang libclang-rt-14-dev
+  python3 time
 )
 
 missing=()

@@ -62,7 +62,10 @@ void cullObjects(const std::vector<SkeletonNode>& skeleton,
     }
     ++i;  // descend into the children
   }
-  std::sort(out->begin() + long(first), out->end());
+  // Pre-order usually yields ascending indices already (the preprocessor
+  // numbers objects in traversal order).
+  if (!std::is_sorted(out->begin() + long(first), out->end()))
+    std::sort(out->begin() + long(first), out->end());
   if (stats) {
     stats->nodes_visited += local.nodes_visited;
     stats->objects += local.objects;

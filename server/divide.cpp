@@ -22,9 +22,22 @@ namespace {
 
 // Eye-space points of the box, clipped to the half-space in front of the near
 // plane (z_eye <= -near): the corners in front plus where edges cross it.
+// Corners come from the eye-space centre and half-axes (additions only).
 int clippedEyePoints(const Box3d& box, const Mat4d& view, double near, Vec3d out[20]) {
+  Vec3d h = box.extent() * 0.5;
+  Vec3d c0 = view.transformPoint(box.center());
+  Vec3d ax = view.transformVector({h.x, 0, 0}), ay = view.transformVector({0, h.y, 0}),
+        az = view.transformVector({0, 0, h.z});
   Vec3d c[8];
-  for (int i = 0; i < 8; ++i) c[i] = view.transformPoint(box.corner(i));
+  bool allFront = true;
+  for (int i = 0; i < 8; ++i) {
+    c[i] = c0 + ((i & 1) ? ax : -ax) + ((i & 2) ? ay : -ay) + ((i & 4) ? az : -az);
+    allFront = allFront && -c[i].z >= near;
+  }
+  if (allFront) {  // the common case: nothing to clip
+    std::copy(c, c + 8, out);
+    return 8;
+  }
   int n = 0;
   for (int i = 0; i < 8; ++i)
     if (-c[i].z >= near) out[n++] = c[i];
@@ -40,44 +53,77 @@ int clippedEyePoints(const Box3d& box, const Mat4d& view, double near, Vec3d out
   return n;
 }
 
-Box3d boundsBox(const ObjectBounds& o) {
-  if (o.use_box) return o.box;
+}  // namespace
+
+Box3d tightBox(const ObjectBounds& o) {
   Vec3d r{o.sphere.radius, o.sphere.radius, o.sphere.radius};
   Box3d s{o.sphere.center - r, o.sphere.center + r};
   return Box3d{vmax(o.box.lo, s.lo), vmin(o.box.hi, s.hi)};  // both enclose the object
 }
 
-}  // namespace
-
-bool footprint(const ObjectBounds& o, uint32_t index, const Camera& camera, int width, int height,
-               Footprint* out) {
-  Box3d box = boundsBox(o);
-  if (!box.valid()) return false;
-  Vec3d pts[20];
-  int n = clippedEyePoints(box, viewMatrix(camera), camera.near, pts);
-  if (n == 0) return false;
+FootprintProjector::FootprintProjector(const Camera& camera, int width, int height)
+    : view_(viewMatrix(camera)), near_(camera.near), width_(width), height_(height) {
   double ty = std::tan(camera.fovy_deg * M_PI / 360.0), tx = ty * camera.aspect;
+  sx_ = 0.5 * width / tx;
+  sy_ = 0.5 * height / ty;
+}
+
+bool FootprintProjector::operator()(const ObjectBounds& o, uint32_t index, Footprint* out) const {
+  return (*this)(tightBox(o), o.weight, index, out);
+}
+
+bool FootprintProjector::operator()(const Box3d& box, uint64_t weight, uint32_t index,
+                                    Footprint* out) const {
+  if (!box.valid()) return false;
   double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
-  for (int i = 0; i < n; ++i) {
-    double d = -pts[i].z;  // >= near > 0
-    double sx = (pts[i].x / (d * tx) * 0.5 + 0.5) * width;
-    double sy = (pts[i].y / (d * ty) * 0.5 + 0.5) * height;
-    xmin = std::min(xmin, sx);
-    xmax = std::max(xmax, sx);
-    ymin = std::min(ymin, sy);
-    ymax = std::max(ymax, sy);
+  auto project = [&](double x, double y, double z) {
+    double inv = 1.0 / -z;  // depth >= near > 0
+    double px = x * inv * sx_, py = y * inv * sy_;
+    xmin = std::min(xmin, px);
+    xmax = std::max(xmax, px);
+    ymin = std::min(ymin, py);
+    ymax = std::max(ymax, py);
+  };
+  // Fast path, plain doubles: eye-space centre +- half-axes, all in front.
+  Vec3d h = box.extent() * 0.5;
+  Vec3d c = view_.transformPoint(box.center());
+  const auto& m = view_.m;  // column-major: m[col][row]
+  double ax[3] = {m[0][0] * h.x, m[0][1] * h.x, m[0][2] * h.x};
+  double ay[3] = {m[1][0] * h.y, m[1][1] * h.y, m[1][2] * h.y};
+  double az[3] = {m[2][0] * h.z, m[2][1] * h.z, m[2][2] * h.z};
+  double reach = std::fabs(ax[2]) + std::fabs(ay[2]) + std::fabs(az[2]);
+  if (-(c.z + reach) >= near_) {
+    for (int i = 0; i < 8; ++i) {
+      double s0 = (i & 1) ? 1 : -1, s1 = (i & 2) ? 1 : -1, s2 = (i & 4) ? 1 : -1;
+      project(c.x + s0 * ax[0] + s1 * ay[0] + s2 * az[0], c.y + s0 * ax[1] + s1 * ay[1] + s2 * az[1],
+              c.z + s0 * ax[2] + s1 * ay[2] + s2 * az[2]);
+    }
+  } else {  // the box reaches behind the near plane: clip it first
+    Vec3d pts[20];
+    int n = clippedEyePoints(box, view_, near_, pts);
+    if (n == 0) return false;
+    for (int i = 0; i < n; ++i) project(pts[i].x, pts[i].y, pts[i].z);
   }
+  xmin += 0.5 * width_;
+  xmax += 0.5 * width_;
+  ymin += 0.5 * height_;
+  ymax += 0.5 * height_;
   auto clampi = [](double v, int hi) { return int(std::clamp(v, -1.0, double(hi) + 1.0)); };
   Footprint f;
   f.object = index;
-  f.weight = o.weight;
-  f.x0 = std::max(0, clampi(std::floor(xmin), width) - 1);
-  f.x1 = std::min(width, clampi(std::ceil(xmax), width) + 1);
-  f.y0 = std::max(0, clampi(std::floor(ymin), height) - 1);
-  f.y1 = std::min(height, clampi(std::ceil(ymax), height) + 1);
+  f.weight = weight;
+  f.x0 = std::max(0, clampi(std::floor(xmin), width_) - 1);
+  f.x1 = std::min(width_, clampi(std::ceil(xmax), width_) + 1);
+  f.y0 = std::max(0, clampi(std::floor(ymin), height_) - 1);
+  f.y1 = std::min(height_, clampi(std::ceil(ymax), height_) + 1);
   if (f.x0 >= f.x1 || f.y0 >= f.y1) return false;
   *out = f;
   return true;
+}
+
+bool footprint(const ObjectBounds& o, uint32_t index, const Camera& camera, int width, int height,
+               Footprint* out) {
+  return FootprintProjector(camera, width, height)(o, index, out);
 }
 
 // ---- division -------------------------------------------------------------
@@ -127,8 +173,11 @@ Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int o
     size_t k = size_t(at - origin);
     endedUpTo += endsAt[k];
     double right = total - endedUpTo;
+    // For uneven client counts the per-client term alone would reward
+    // duplicating a heavy straddler into both sides; charge the duplicate.
     double cost = std::fabs(left - lt) + std::fabs(right - rt) +
-                  std::min(nl, nr) * std::fabs(left / nl - right / nr);
+                  std::min(nl, nr) * std::fabs(left / nl - right / nr) +
+                  (nl != nr ? left + right - total : 0.0);
     double dist = std::fabs(at - geometric);
     double eps = 1e-9 * total;
     if (cost < bestCost - eps || (cost <= bestCost + eps && dist < bestDist)) {
@@ -150,7 +199,8 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
       r.objects.push_back(f->object);
       r.weight += f->weight;
     }
-    std::sort(r.objects.begin(), r.objects.end());
+    if (!std::is_sorted(r.objects.begin(), r.objects.end()))  // usually already ascending
+      std::sort(r.objects.begin(), r.objects.end());
     out->push_back(std::move(r));
     return;
   }
@@ -171,12 +221,18 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
   if (first > last) first = last = origin + std::clamp(int(double(size) * nl / clients), 1, size - 1);
   Split s = bestSplit(items, vertical, origin, size, first, last, nl, nr);
 
-  std::vector<const Footprint*> left, right;
+  // Branch-free partition: random footprints make the branches unpredictable.
+  std::vector<const Footprint*> left(items.size()), right(items.size());
+  size_t nleft = 0, nright = 0;
   for (const Footprint* f : items) {
     Span sp = spanOf(*f, vertical);
-    if (sp.lo < s.at) left.push_back(f);
-    if (sp.hi > s.at) right.push_back(f);
+    left[nleft] = f;
+    nleft += sp.lo < s.at;
+    right[nright] = f;
+    nright += sp.hi > s.at;
   }
+  left.resize(nleft);
+  right.resize(nright);
   Rect lr = rect, rr = rect;
   if (vertical) {
     lr.w = s.at - rect.x;

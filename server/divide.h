@@ -29,6 +29,25 @@ std::ostream& operator<<(std::ostream& os, const Footprint& f);
 bool footprint(const ObjectBounds& o, uint32_t index, const Camera& camera, int width, int height,
                Footprint* out);
 
+// The smallest axis-aligned box the object's bounds give: its box, clipped to
+// the sphere's box (both enclose the object).
+Box3d tightBox(const ObjectBounds& o);
+
+// The same for many objects under one camera: the view transform and the
+// projection scales are computed once.
+class FootprintProjector {
+ public:
+  FootprintProjector(const Camera& camera, int width, int height);
+  bool operator()(const ObjectBounds& o, uint32_t index, Footprint* out) const;
+  // `box` must enclose the object (see tightBox).
+  bool operator()(const Box3d& box, uint64_t weight, uint32_t index, Footprint* out) const;
+
+ private:
+  Mat4d view_;
+  double near_, sx_, sy_;  // pixels per unit of x/depth and y/depth
+  int width_, height_;
+};
+
 struct Region {
   Rect rect;
   std::vector<uint32_t> objects;  // ascending object indices

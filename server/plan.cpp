@@ -1,26 +1,61 @@
 #include "plan.h"
 
+#include <algorithm>
 #include <chrono>
+#include <thread>
 
 namespace dmmr {
 
+FramePlanner::FramePlanner(const Scene& scene) : scene_(scene) {
+  boxes_.reserve(scene.objects.size());
+  for (const ObjectBounds& o : scene.objects) boxes_.push_back({tightBox(o), o.weight});
+}
+
+std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
+                                                const Camera& camera, int width, int height) const {
+  FootprintProjector project(camera, width, height);
+  // Projection is independent per object: large frames use the server's
+  // cores, each thread filling its own slice, concatenated in order.
+  constexpr size_t kPerThread = 16384;
+  size_t threads = std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), 8,
+                                     visible.size() / kPerThread + 1});
+  std::vector<std::vector<Footprint>> parts(threads);
+  auto work = [&](size_t t) {
+    size_t begin = visible.size() * t / threads, end = visible.size() * (t + 1) / threads;
+    parts[t].reserve(end - begin);
+    Footprint f;
+    for (size_t k = begin; k < end; ++k)
+      if (project(boxes_[visible[k]].box, boxes_[visible[k]].weight, visible[k], &f))
+        parts[t].push_back(f);
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (auto& th : pool) th.join();
+  std::vector<Footprint> items = std::move(parts[0]);
+  for (size_t t = 1; t < threads; ++t) items.insert(items.end(), parts[t].begin(), parts[t].end());
+  return items;
+}
+
 FramePlan planFrame(const Scene& scene, const Camera& camera, int width, int height, int clients) {
+  return FramePlanner(scene).plan(camera, width, height, clients);
+}
+
+FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients) const {
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
   auto t0 = Clock::now();
   std::vector<uint32_t> visible;
   CullStats cs;
-  cullObjects(scene.skeleton, scene.objects, frustumPlanes(camera), &visible, &cs);
+  cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(camera), &visible, &cs);
   plan.objects_in_frustum = cs.objects;
   plan.triangles_in_frustum = cs.triangles;
   auto t1 = Clock::now();
-  std::vector<Footprint> items;
-  items.reserve(visible.size());
-  Footprint f;
-  for (uint32_t i : visible)
-    if (footprint(scene.objects[i], i, camera, width, height, &f)) items.push_back(f);
+  std::vector<Footprint> items = footprints(visible, camera, width, height);
+  auto tp = Clock::now();
   plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients);
   auto t2 = Clock::now();
+  plan.project_ms = std::chrono::duration<double, std::milli>(tp - t1).count();
   plan.cull_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   plan.divide_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
   return plan;

@@ -227,6 +227,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
 
   const ViewOptions& v = opts.view;
   double near = v.near > 0 ? v.near : defaultNear(scene);
+  FramePlanner planner(scene);
   Assembler assembler(comm, opts, clients, path.points.size());
   std::thread assembling([&] { assembler.run(); });
   for (uint32_t f = 0; f < path.points.size(); ++f) {
@@ -234,7 +235,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     FrameRecord rec;
     rec.started = Clock::now();
     Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
-    FramePlan plan = planFrame(scene, cam, v.width, v.height, clients);
+    FramePlan plan = planner.plan(cam, v.width, v.height, clients);
     rec.cull_ms = plan.cull_ms;
     rec.divide_ms = plan.divide_ms;
     rec.objects = plan.objects_in_frustum;

@@ -267,7 +267,7 @@ TEST(DivideFrame, AHeavyObjectGetsOneOfTwoClientsAndTheLightOnesTheOther) {
 // averages. The next split cuts through it again, so all three clients draw
 // it (loads 1000, 1502, 1500). See the report; enable once the cost counts
 // duplicated weight for uneven splits.
-TEST(DivideFrame, DISABLED_AHeavyObjectIsNotDuplicatedToEvenOutAnUnevenSplit) {
+TEST(DivideFrame, AHeavyObjectIsNotDuplicatedToEvenOutAnUnevenSplit) {
   std::vector<Footprint> items = heavyAndLight();
   std::vector<Region> three = divideFrame(items, Rect{0, 0, 1024, 1024}, 3);
   ASSERT_TRUE(test::tilesFrame(three, Rect{0, 0, 1024, 1024}, 3));
