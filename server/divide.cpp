@@ -93,11 +93,29 @@ bool FootprintProjector::operator()(const Box3d& box, uint64_t weight, uint32_t 
   double az[3] = {m[2][0] * h.z, m[2][1] * h.z, m[2][2] * h.z};
   double reach = std::fabs(ax[2]) + std::fabs(ay[2]) + std::fabs(az[2]);
   if (-(c.z + reach) >= near_) {
+    // Eight corners as straight-line arrays so the compiler can vectorise;
+    // float is ample here (camera-relative, with a one-pixel margin).
+    float X[8], Y[8], W[8];
     for (int i = 0; i < 8; ++i) {
-      double s0 = (i & 1) ? 1 : -1, s1 = (i & 2) ? 1 : -1, s2 = (i & 4) ? 1 : -1;
-      project(c.x + s0 * ax[0] + s1 * ay[0] + s2 * az[0], c.y + s0 * ax[1] + s1 * ay[1] + s2 * az[1],
-              c.z + s0 * ax[2] + s1 * ay[2] + s2 * az[2]);
+      float s0 = (i & 1) ? 1.f : -1.f, s1 = (i & 2) ? 1.f : -1.f, s2 = (i & 4) ? 1.f : -1.f;
+      X[i] = float(c.x * sx_) + s0 * float(ax[0] * sx_) + s1 * float(ay[0] * sx_) +
+             s2 * float(az[0] * sx_);
+      Y[i] = float(c.y * sy_) + s0 * float(ax[1] * sy_) + s1 * float(ay[1] * sy_) +
+             s2 * float(az[1] * sy_);
+      W[i] = float(-c.z) - s0 * float(ax[2]) - s1 * float(ay[2]) - s2 * float(az[2]);
     }
+    float fxmin = INFINITY, fxmax = -INFINITY, fymin = INFINITY, fymax = -INFINITY;
+    for (int i = 0; i < 8; ++i) {
+      float px = X[i] / W[i], py = Y[i] / W[i];
+      fxmin = std::min(fxmin, px);
+      fxmax = std::max(fxmax, px);
+      fymin = std::min(fymin, py);
+      fymax = std::max(fymax, py);
+    }
+    xmin = fxmin;
+    xmax = fxmax;
+    ymin = fymin;
+    ymax = fymax;
   } else {  // the box reaches behind the near plane: clip it first
     Vec3d pts[20];
     int n = clippedEyePoints(box, view_, near_, pts);
