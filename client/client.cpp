@@ -1,12 +1,17 @@
 #include "client.h"
 
+#include <atomic>
 #include <chrono>
+#include <future>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include "draw.h"
 #include "error.h"
 #include "mesh_provider.h"
 #include "protocol.h"
+#include "queue.h"
 #include "scene.h"
 
 namespace dmmr {
@@ -18,49 +23,190 @@ double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
-// Everything a client holds between jobs.
-struct ClientState {
-  Scene scene;
-  std::unique_ptr<GlContext> context;
-  std::unique_ptr<Renderer> renderer;
-  std::unique_ptr<KeepAllMeshProvider> meshes;
+// A job with what the visibility stage decided about it.
+struct VisibleJob {
+  FrameJob job;
+  std::vector<uint32_t> visible;
+  ClientStats stats;
+  Clock::time_point ready;  // when the visibility stage finished it
 };
 
-SubFrame renderJob(ClientState& s, const FrameJob& job, Codec codec) {
-  SubFrame out;
-  out.frame = job.frame;
-  out.region = job.region;
-  ClientStats& st = out.stats;
-  auto t0 = Clock::now();
-  s.renderer->beginFrame(job.camera, job.region);
-  for (uint32_t index : job.objects) {  // ascending, as the reference draws
-    if (index >= s.scene.objects.size())
-      throw Error("job names object " + std::to_string(index) + " beyond the scene");
-    const ObjectBounds& o = s.scene.objects[index];
-    auto tl = Clock::now();
-    const GpuMesh& mesh = s.meshes->acquire(o.geometry);
-    st.load_ms += msSince(tl);
-    s.renderer->draw(mesh, o.transform, s.meshes->textures());
-    ++st.objects;
-    st.triangles += mesh.triangles;
+// One GL context with the shared drawing code and its meshes.
+struct GlStage {
+  GlStage(const Scene& scene, const ContextOptions& ctx, const ViewOptions& view)
+      : context(createContext(ctx)),
+        renderer(context->gl(), view.width, view.height),
+        meshes(scene, renderer) {}
+  std::unique_ptr<GlContext> context;
+  Renderer renderer;
+  KeepAllMeshProvider meshes;
+};
+
+class VisibilityStage {
+ public:
+  VisibilityStage(const Scene& scene, const ClientOptions& opts)
+      : scene_(scene),
+        opts_(opts.visibility),
+        gl_(scene, opts.visibility_context, opts.view),
+        marked_until_(scene.objects.size(), 0) {}
+
+  VisibleJob run(FrameJob job) {
+    VisibleJob out;
+    out.stats.objects = job.objects.size();
+    if (!opts_.enabled) {  // no culling: the render stage draws the whole list
+      out.visible = job.objects;
+      out.stats.visible = out.visible.size();
+      out.job = std::move(job);
+      return out;
+    }
+    auto t0 = Clock::now();
+    VisibilityPlan plan =
+        planVisibility(job.objects, previous_, scene_.occluders, marked_until_, job.frame);
+    Renderer& r = gl_.renderer;
+    r.beginDepthFrame(job.camera, job.region);
+    for (uint32_t o : plan.occluders)
+      r.draw(gl_.meshes.acquire(scene_.objects[o].geometry), scene_.objects[o].transform,
+             gl_.meshes.textures());
+    // Queries: objects whose box reaches the near plane are taken untested.
+    std::vector<uint32_t> passed, tested;
+    if (queries_.size() < plan.queried.size()) growQueries(plan.queried.size());
+    GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
+    r.beginQueries();
+    for (uint32_t o : plan.queried) {
+      const Box3d& box = scene_.objects[o].box;
+      if (boxReachesNearPlane(box, job.camera)) {
+        passed.push_back(o);
+        continue;
+      }
+      r.queryBox(box, queries_[tested.size()], target);
+      tested.push_back(o);
+    }
+    r.endQueries();
+    out.stats.prepare_ms = msSince(t0);
+    auto t1 = Clock::now();
+    const GlApi& gl = gl_.context->gl();
+    for (size_t i = 0; i < tested.size(); ++i) {
+      GLuint samples = 0;
+      gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
+      if (target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold)
+        passed.push_back(tested[i]);
+    }
+    gl.check("occlusion queries");
+    for (uint32_t o : passed) marked_until_[o] = job.frame + 1 + opts_.keep_frames;
+    std::sort(passed.begin(), passed.end());
+    out.visible = mergeSorted({plan.occluders, plan.marked, passed});
+    previous_ = out.visible;
+    out.stats.retrieve_ms = msSince(t1);
+    out.stats.occluders = plan.occluders.size();
+    out.stats.queried = tested.size();
+    out.stats.visible = out.visible.size();
+    out.job = std::move(job);
+    return out;
   }
-  s.renderer->finish();
-  st.render_ms = msSince(t0) - st.load_ms;
-  auto tr = Clock::now();
-  std::vector<uint8_t> rgba, rgb;
-  s.renderer->readPixels(job.region, &rgba);
-  rgb.resize(size_t(job.region.area()) * 3);
-  for (size_t i = 0, n = size_t(job.region.area()); i < n; ++i)
-    for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = rgba[i * 4 + c];
-  st.readback_ms = msSince(tr);
-  auto tc = Clock::now();
-  out.codec = codec;
-  out.raw_size = rgb.size();
-  out.data = compress(codec, rgb.data(), rgb.size());
-  st.compress_ms = msSince(tc);
-  st.bytes_raw = rgb.size();
-  st.bytes_sent = out.data.size();
-  return out;
+
+ private:
+  void growQueries(size_t n) {
+    size_t old = queries_.size();
+    queries_.resize(std::max(n, old * 2));
+    gl_.context->gl().GenQueries(GLsizei(queries_.size() - old), queries_.data() + old);
+  }
+
+  const Scene& scene_;
+  VisibilityOptions opts_;
+  GlStage gl_;
+  std::vector<uint32_t> previous_;      // last frame's visible list (ascending)
+  std::vector<uint32_t> marked_until_;  // per object: first frame to query again
+  std::vector<GLuint> queries_;
+};
+
+class RenderStage {
+ public:
+  RenderStage(const Scene& scene, const ClientOptions& opts)
+      : scene_(scene), codec_(opts.codec), gl_(scene, opts.render_context, opts.view) {}
+
+  SubFrame run(const VisibleJob& v) {
+    const FrameJob& job = v.job;
+    SubFrame out;
+    out.frame = job.frame;
+    out.region = job.region;
+    out.stats = v.stats;
+    ClientStats& st = out.stats;
+    st.pass_ms = msSince(v.ready);  // from list ready to the render stage taking it
+    auto t0 = Clock::now();
+    Renderer& r = gl_.renderer;
+    r.beginFrame(job.camera, job.region);
+    for (uint32_t index : v.visible) {  // ascending, as the reference draws
+      const ObjectBounds& o = scene_.objects[index];
+      auto tl = Clock::now();
+      const GpuMesh& mesh = gl_.meshes.acquire(o.geometry);
+      st.load_ms += msSince(tl);
+      r.draw(mesh, o.transform, gl_.meshes.textures());
+      st.triangles += mesh.triangles;
+    }
+    r.finish();
+    st.render_ms = msSince(t0) - st.load_ms;
+    auto tr = Clock::now();
+    std::vector<uint8_t> rgba, rgb;
+    r.readPixels(job.region, &rgba);
+    rgb.resize(size_t(job.region.area()) * 3);
+    for (size_t i = 0, n = size_t(job.region.area()); i < n; ++i)
+      for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = rgba[i * 4 + c];
+    st.readback_ms = msSince(tr);
+    auto tc = Clock::now();
+    out.codec = codec_;
+    out.raw_size = rgb.size();
+    out.data = compress(codec_, rgb.data(), rgb.size());
+    st.compress_ms = msSince(tc);
+    st.bytes_raw = rgb.size();
+    st.bytes_sent = out.data.size();
+    st.send_ms = last_send_ms_;
+    return out;
+  }
+
+  void sent(double ms) { last_send_ms_ = ms; }
+
+ private:
+  const Scene& scene_;
+  Codec codec_;
+  GlStage gl_;
+  double last_send_ms_ = 0;
+};
+
+// Sends the first error of any stage to the server; later stages drain their
+// queues without work until Shutdown arrives, so no rank blocks.
+class FailureReport {
+ public:
+  explicit FailureReport(Comm& comm) : comm_(comm) {}
+  void fail(const std::string& what) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (failed_) return;
+    failed_ = true;
+    comm_.send(0, Tag::Error, encodeText(what));
+  }
+  bool failed() const { return failed_; }
+
+ private:
+  Comm& comm_;
+  std::mutex mu_;
+  std::atomic<bool> failed_{false};
+};
+
+// Runs `make` on a new thread, reports whether it succeeded through the
+// future, then runs `loop` with the object it made (on that same thread,
+// where its GL context is current).
+template <typename Stage, typename Loop>
+std::thread startStage(std::function<std::unique_ptr<Stage>()> make, Loop loop,
+                       std::promise<std::string>* ready) {
+  return std::thread([make, loop, ready] {
+    std::unique_ptr<Stage> stage;
+    try {
+      stage = make();
+      ready->set_value("");
+    } catch (const std::exception& e) {
+      ready->set_value(e.what());
+    }
+    loop(stage.get());  // null when construction failed: the loop only drains
+  });
 }
 
 }  // namespace
@@ -70,38 +216,79 @@ int runClient(Comm& comm, const ClientOptions& opts) {
   comm.broadcast(0, &ok);  // did the server load the scene?
   if (!ok) return 1;
 
-  ClientState s;
   std::string problem;
+  Scene scene;
   try {
-    s.scene = loadScene(opts.scene, /*with_skeleton=*/false);
-    s.context = createContext(opts.context);
-    s.renderer = std::make_unique<Renderer>(s.context->gl(), opts.view.width, opts.view.height);
-    s.meshes = std::make_unique<KeepAllMeshProvider>(s.scene, *s.renderer);
+    scene = loadScene(opts.scene, /*with_skeleton=*/false);
   } catch (const std::exception& e) {
     problem = e.what();
+  }
+
+  BoundedQueue<FrameJob> jobs(2);
+  BoundedQueue<VisibleJob> visible(2);
+  FailureReport failure(comm);
+  std::promise<std::string> visReady, renderReady;
+
+  auto visLoop = [&](VisibilityStage* stage) {
+    while (auto job = jobs.pop()) {
+      if (!stage || failure.failed()) continue;
+      try {
+        VisibleJob v = stage->run(std::move(*job));
+        v.ready = Clock::now();
+        visible.push(std::move(v));  // blocks while the render stage is behind
+      } catch (const std::exception& e) {
+        failure.fail(std::string("visibility stage: ") + e.what());
+      }
+    }
+    visible.close();
+  };
+  auto renderLoop = [&](RenderStage* stage) {
+    while (auto v = visible.pop()) {
+      if (!stage || failure.failed()) continue;
+      try {
+        SubFrame sf = stage->run(*v);
+        auto ts = Clock::now();
+        comm.send(0, Tag::SubFrame, encodeSubFrame(sf));
+        stage->sent(msSince(ts));
+      } catch (const std::exception& e) {
+        failure.fail(std::string("render stage: ") + e.what());
+      }
+    }
+  };
+  std::thread visThread, renderThread;
+  if (problem.empty()) {
+    visThread = startStage<VisibilityStage>(
+        [&] { return std::make_unique<VisibilityStage>(scene, opts); }, visLoop, &visReady);
+    renderThread = startStage<RenderStage>(
+        [&] { return std::make_unique<RenderStage>(scene, opts); }, renderLoop, &renderReady);
+    for (auto* ready : {&visReady, &renderReady}) {
+      std::string p = ready->get_future().get();
+      if (!p.empty() && problem.empty()) problem = p;
+    }
   }
   comm.send(0, Tag::Hello, encodeText(problem));
   int go = 0;
   comm.broadcast(0, &go);
-  if (!go) return 1;
 
-  int status = 0;
-  bool failed = false;
-  for (;;) {
-    Message m = comm.recv(0);
-    if (m.tag == Tag::Shutdown) break;
-    if (m.tag != Tag::Job || failed) continue;  // after a failure, wait for Shutdown
-    try {
-      SubFrame sf = renderJob(s, decodeJob(m.bytes), opts.codec);
-      comm.send(0, Tag::SubFrame, encodeSubFrame(sf));
-    } catch (const std::exception& e) {
-      comm.send(0, Tag::Error, encodeText(e.what()));
-      failed = true;
-      status = 1;
+  if (go) {
+    for (;;) {
+      Message m = comm.recv(0);
+      if (m.tag == Tag::Shutdown) break;
+      if (m.tag != Tag::Job) continue;
+      try {
+        jobs.push(decodeJob(m.bytes));
+      } catch (const std::exception& e) {
+        failure.fail(e.what());
+      }
     }
   }
+  jobs.close();
+  if (visThread.joinable()) visThread.join();
+  visible.close();
+  if (renderThread.joinable()) renderThread.join();
+  if (!go) return 1;
   comm.send(0, Tag::Bye, {});
-  return status;
+  return failure.failed() ? 1 : 0;
 }
 
 }  // namespace dmmr

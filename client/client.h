@@ -1,20 +1,26 @@
-// A dmmr client (ranks 1..N): renders the object list of each job into its
-// region with the shared drawing code and returns the compressed pixels.
+// A dmmr client (ranks 1..N). Two stages on two GL contexts and threads, as
+// in the DMMR paper: visibility (occluders and occlusion queries, context 1)
+// and render (the visible list into the region, context 2), fed by bounded
+// queues, so that while the server plans frame i the client tests frame i-1
+// and draws frame i-2.
 #pragma once
 
 #include <string>
 
-#include "compress.h"
 #include "camera.h"
+#include "compress.h"
 #include "gl_context.h"
 #include "mpi_comm.h"
+#include "visibility.h"
 
 namespace dmmr {
 
 struct ClientOptions {
   std::string scene;
   ViewOptions view;
-  ContextOptions context;
+  ContextOptions visibility_context;  // context 1
+  ContextOptions render_context;      // context 2
+  VisibilityOptions visibility;
   Codec codec = Codec::LZ4;
 };
 

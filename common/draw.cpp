@@ -55,6 +55,18 @@ void main() {
 }
 )";
 
+const char* kBoxVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 a_pos;
+uniform mat4 u_mv;
+uniform mat4 u_proj;
+void main() { gl_Position = u_proj * (u_mv * vec4(a_pos, 1.0)); }
+)";
+
+const char* kBoxFragmentShader = R"(#version 450 core
+out vec4 o_color;
+void main() { o_color = vec4(1.0); }
+)";
+
 GLuint compile(const GlApi& gl, GLenum type, const char* src) {
   GLuint s = gl.CreateShader(type);
   gl.ShaderSource(s, 1, &src, nullptr);
@@ -68,6 +80,26 @@ GLuint compile(const GlApi& gl, GLenum type, const char* src) {
     throw Error(std::string("shader compile failed: ") + log);
   }
   return s;
+}
+
+GLuint link(const GlApi& gl, const char* vsSrc, const char* fsSrc) {
+  GLuint vs = compile(gl, GL_VERTEX_SHADER, vsSrc);
+  GLuint fs = compile(gl, GL_FRAGMENT_SHADER, fsSrc);
+  GLuint program = gl.CreateProgram();
+  gl.AttachShader(program, vs);
+  gl.AttachShader(program, fs);
+  gl.LinkProgram(program);
+  gl.DeleteShader(vs);
+  gl.DeleteShader(fs);
+  GLint ok = 0;
+  gl.GetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    gl.GetProgramInfoLog(program, sizeof log, nullptr, log);
+    gl.DeleteProgram(program);
+    throw Error(std::string("shader link failed: ") + log);
+  }
+  return program;
 }
 
 void toFloat(const Mat4d& m, float out[16]) {
@@ -95,21 +127,25 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw Error("the frame's framebuffer is incomplete");
 
-  GLuint vs = compile(gl_, GL_VERTEX_SHADER, kVertexShader);
-  GLuint fs = compile(gl_, GL_FRAGMENT_SHADER, kFragmentShader);
-  program_ = gl_.CreateProgram();
-  gl_.AttachShader(program_, vs);
-  gl_.AttachShader(program_, fs);
-  gl_.LinkProgram(program_);
-  gl_.DeleteShader(vs);
-  gl_.DeleteShader(fs);
-  GLint ok = 0;
-  gl_.GetProgramiv(program_, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    gl_.GetProgramInfoLog(program_, sizeof log, nullptr, log);
-    throw Error(std::string("shader link failed: ") + log);
-  }
+  program_ = link(gl_, kVertexShader, kFragmentShader);
+  box_program_ = link(gl_, kBoxVertexShader, kBoxFragmentShader);
+  u_box_mv_ = gl_.GetUniformLocation(box_program_, "u_mv");
+  u_box_proj_ = gl_.GetUniformLocation(box_program_, "u_proj");
+  // The unit cube [-1, 1]^3 that query boxes scale and place.
+  const float corners[24] = {-1, -1, -1, 1, -1, -1, -1, 1, -1, 1, 1, -1,
+                             -1, -1, 1,  1, -1, 1,  -1, 1, 1,  1, 1, 1};
+  const GLuint faces[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                            2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  gl_.GenVertexArrays(1, &box_vao_);
+  gl_.BindVertexArray(box_vao_);
+  gl_.GenBuffers(2, box_buffers_);
+  gl_.BindBuffer(GL_ARRAY_BUFFER, box_buffers_[0]);
+  gl_.BufferData(GL_ARRAY_BUFFER, sizeof corners, corners, GL_STATIC_DRAW);
+  gl_.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, nullptr);
+  gl_.EnableVertexAttribArray(0);
+  gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, box_buffers_[1]);
+  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof faces, faces, GL_STATIC_DRAW);
+  gl_.BindVertexArray(0);
   u_mv_ = gl_.GetUniformLocation(program_, "u_mv");
   u_proj_ = gl_.GetUniformLocation(program_, "u_proj");
   u_nrm_ = gl_.GetUniformLocation(program_, "u_nrm");
@@ -129,6 +165,9 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
 
 Renderer::~Renderer() {
   gl_.DeleteProgram(program_);
+  gl_.DeleteProgram(box_program_);
+  gl_.DeleteBuffers(2, box_buffers_);
+  gl_.DeleteVertexArrays(1, &box_vao_);
   gl_.DeleteRenderbuffers(1, &color_rb_);
   gl_.DeleteRenderbuffers(1, &depth_rb_);
   gl_.DeleteFramebuffers(1, &fbo_);
@@ -194,6 +233,8 @@ void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
   gl_.Viewport(0, 0, width_, height_);
   gl_.Scissor(region.x, region.y, region.w, region.h);
   gl_.DepthMask(GL_TRUE);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl_.DepthFunc(GL_GREATER);
   gl_.ClearColor(bg.r, bg.g, bg.b, 1.f);
   gl_.ClearDepth(0.0);
   gl_.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -205,6 +246,45 @@ void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
   gl_.VertexAttrib4f(1, 0.f, 0.f, 0.f, 0.f);  // used when a mesh has no normals
   gl_.VertexAttrib4f(2, 1.f, 1.f, 1.f, 1.f);  // ... no colours
   gl_.VertexAttrib4f(3, 0.f, 0.f, 0.f, 1.f);  // ... no texture coordinates
+}
+
+void Renderer::beginDepthFrame(const Camera& camera, const Rect& region) {
+  beginFrame(camera, region);
+  gl_.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+}
+
+void Renderer::beginQueries() {
+  gl_.UseProgram(box_program_);
+  float proj[16];
+  toFloat(projectionMatrix(camera_), proj);
+  gl_.UniformMatrix4fv(u_box_proj_, 1, GL_FALSE, proj);
+  gl_.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl_.DepthMask(GL_FALSE);
+  gl_.DepthFunc(GL_GEQUAL);
+  gl_.BindVertexArray(box_vao_);
+}
+
+void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
+  // Camera-relative placement in double; widen by a relative and an absolute
+  // margin so the box's front faces stay in front of the geometry inside it
+  // after float rounding.
+  Vec3d c = box.center() - camera_.eye, h = box.extent() * 0.5;
+  double slack = 1e-5 * (length(c) + length(h)) + 1e-9;
+  Vec3d half{h.x * 1.001 + slack, h.y * 1.001 + slack, h.z * 1.001 + slack};
+  Mat4d mv = view_rotation_ * Mat4d::translate(c) * Mat4d::scale(half);
+  float mvf[16];
+  toFloat(mv, mvf);
+  gl_.UniformMatrix4fv(u_box_mv_, 1, GL_FALSE, mvf);
+  gl_.BeginQuery(target, query);
+  gl_.DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr);
+  gl_.EndQuery(target);
+}
+
+void Renderer::endQueries() {
+  gl_.BindVertexArray(0);
+  gl_.DepthMask(GL_TRUE);
+  gl_.DepthFunc(GL_GREATER);
+  gl_.UseProgram(program_);
 }
 
 void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,

@@ -52,6 +52,20 @@ class Renderer {
   // Clears `region` (colour and depth) and sets the camera for the draws that
   // follow. The viewport is always the full frame; `region` is the scissor.
   void beginFrame(const Camera& camera, const Rect& region, Rgb background = {});
+  // Like beginFrame, but only depth is written (colour masked): the
+  // visibility stage's occluder pass, drawn with draw() so that its depth
+  // equals the render pass's bit for bit.
+  void beginDepthFrame(const Camera& camera, const Rect& region);
+
+  // Occlusion queries of boxes against the depth drawn so far, within the
+  // frame's region: depth test GEQUAL (a tie counts as visible), no colour or
+  // depth writes. Each box is widened slightly so that it stays in front of
+  // what it encloses despite rounding. `target` is GL_ANY_SAMPLES_PASSED or
+  // GL_SAMPLES_PASSED.
+  void beginQueries();
+  void queryBox(const Box3d& world_box, GLuint query, GLenum target);
+  void endQueries();
+
   // Draws one object; `textures` maps texture file indices to GL names.
   void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);
   // Reads `region` as RGBA8, bottom row first (GL order).
@@ -62,6 +76,8 @@ class Renderer {
   const GlApi& gl_;
   int width_, height_;
   GLuint fbo_ = 0, color_rb_ = 0, depth_rb_ = 0, program_ = 0;
+  GLuint box_program_ = 0, box_vao_ = 0, box_buffers_[2] = {};
+  GLint u_box_mv_ = -1, u_box_proj_ = -1;
   GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
   Camera camera_;
   Mat4d view_rotation_;

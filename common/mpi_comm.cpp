@@ -2,7 +2,9 @@
 
 #include <mpi.h>
 
+#include <chrono>
 #include <climits>
+#include <thread>
 
 #include "error.h"
 
@@ -55,11 +57,21 @@ void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
 Message Comm::recv(int source) {
   // Matched probe: the message found is the one received, even when other
   // threads receive too.
+  // OpenMPI's blocking probe spins a core while it waits; on a node whose
+  // cores render, that steals their time. Poll instead, sleeping between
+  // polls with a backoff capped at 0.5 ms (negligible against frame times).
   MPI_Status st;
   MPI_Message handle;
-  check(MPI_Mprobe(source == kAnySource ? MPI_ANY_SOURCE : source, MPI_ANY_TAG, MPI_COMM_WORLD,
-                   &handle, &st),
-        "MPI_Mprobe");
+  int found = 0;
+  std::chrono::microseconds nap{20};
+  for (;;) {
+    check(MPI_Improbe(source == kAnySource ? MPI_ANY_SOURCE : source, MPI_ANY_TAG, MPI_COMM_WORLD,
+                      &found, &handle, &st),
+          "MPI_Improbe");
+    if (found) break;
+    std::this_thread::sleep_for(nap);
+    nap = std::min(nap * 2, std::chrono::microseconds(500));
+  }
   int count = 0;
   check(MPI_Get_count(&st, MPI_BYTE, &count), "MPI_Get_count");
   Message m;

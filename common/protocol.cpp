@@ -59,8 +59,12 @@ std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
   w.u8(uint8_t(s.codec));
   w.u64(s.raw_size);
   const ClientStats& t = s.stats;
-  for (double v : {t.load_ms, t.render_ms, t.readback_ms, t.compress_ms}) w.f64(v);
-  for (uint64_t v : {t.objects, t.triangles, t.bytes_raw, t.bytes_sent}) w.u64(v);
+  for (double v : {t.prepare_ms, t.retrieve_ms, t.pass_ms, t.load_ms, t.render_ms, t.readback_ms,
+                   t.compress_ms, t.send_ms})
+    w.f64(v);
+  for (uint64_t v :
+       {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw, t.bytes_sent})
+    w.u64(v);
   w.u64(s.data.size());
   w.array(s.data.data(), s.data.size());
   return std::move(w.bytes());
@@ -77,8 +81,12 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
   s.raw_size = r.u64("raw size");
   if (s.raw_size != uint64_t(s.region.area()) * 3) r.fail("raw size does not match the region");
   ClientStats& t = s.stats;
-  for (double* v : {&t.load_ms, &t.render_ms, &t.readback_ms, &t.compress_ms}) *v = r.f64("stats");
-  for (uint64_t* v : {&t.objects, &t.triangles, &t.bytes_raw, &t.bytes_sent}) *v = r.u64("stats");
+  for (double* v : {&t.prepare_ms, &t.retrieve_ms, &t.pass_ms, &t.load_ms, &t.render_ms,
+                    &t.readback_ms, &t.compress_ms, &t.send_ms})
+    *v = r.f64("stats");
+  for (uint64_t* v : {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw,
+                      &t.bytes_sent})
+    *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
   r.finish();
   return s;

@@ -22,11 +22,19 @@ struct FrameJob {
 };
 
 struct ClientStats {
+  // Visibility stage (context 1).
+  double prepare_ms = 0;   // occluders into depth, occlusion queries issued
+  double retrieve_ms = 0;  // query results read back, visible list built
+  double pass_ms = 0;      // handing the list to the render stage (waiting included)
+  // Render stage (context 2).
   double load_ms = 0;      // reading and uploading geometry not yet resident
-  double render_ms = 0;    // drawing the object list (through glFinish)
+  double render_ms = 0;    // drawing the visible list (through glFinish)
   double readback_ms = 0;  // reading the region's pixels
   double compress_ms = 0;
-  uint64_t objects = 0, triangles = 0;
+  double send_ms = 0;      // MPI send of this client's previous sub-frame
+  uint64_t objects = 0;    // objects in the region's list from the server
+  uint64_t occluders = 0, queried = 0, visible = 0;
+  uint64_t triangles = 0;  // triangles drawn by the render stage
   uint64_t bytes_raw = 0, bytes_sent = 0;
   friend bool operator==(const ClientStats&, const ClientStats&) = default;
 };

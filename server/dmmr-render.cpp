@@ -27,7 +27,18 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 16));
   app.add_option("--backend", backend, "client GL backend: osmesa or egl")
       ->check(CLI::IsMember({"osmesa", "egl"}));
-  app.add_option("--egl-device", c.context.egl_device, "EGL device index (-1: surfaceless)");
+  int visDevice = -1, renderDevice = -1;
+  std::string visibility = "on";
+  app.add_option("--vis-egl-device", visDevice,
+                 "EGL device of the visibility context (-1: surfaceless)");
+  app.add_option("--render-egl-device", renderDevice,
+                 "EGL device of the render context (-1: surfaceless)");
+  app.add_option("--visibility", visibility, "occlusion culling on the clients: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--query-threshold", c.visibility.query_threshold,
+                 "samples a query must pass (0: any; above 0 approximates)");
+  app.add_option("--keep-frames", c.visibility.keep_frames,
+                 "frames an object stays visible after passing a query");
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
@@ -42,7 +53,9 @@ int main(int argc, char** argv) {
   }
   c.scene = s.scene;
   c.view = s.view;
-  c.context.backend = dmmr::parseBackend(backend);
+  c.visibility_context = {dmmr::parseBackend(backend), visDevice};
+  c.render_context = {dmmr::parseBackend(backend), renderDevice};
+  c.visibility.enabled = visibility == "on";
   c.codec = dmmr::parseCodec(codec);
 
   int status = 0;

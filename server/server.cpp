@@ -44,8 +44,9 @@ class Assembler {
     csv_ = "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
            "objects_in_frustum,triangles_in_frustum";
     for (int k = 1; k <= clients; ++k)
-      for (const char* c : {"objects", "triangles", "load_ms", "render_ms", "readback_ms",
-                            "compress_ms", "bytes_raw", "bytes_sent"})
+      for (const char* c : {"objects", "occluders", "queried", "visible", "triangles",
+                            "prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms",
+                            "readback_ms", "compress_ms", "send_ms", "bytes_raw", "bytes_sent"})
         csv_ += ",c" + std::to_string(k) + "_" + c;
     csv_ += "\n";
     last_done_ = Clock::now();
@@ -141,9 +142,10 @@ class Assembler {
         << rec.cull_ms << "," << rec.divide_ms << "," << rec.send_ms << "," << assemble_ms_[frame]
         << "," << msBetween(tw, done) << "," << rec.objects << "," << rec.triangles;
     for (const ClientStats& c : rec.clients)
-      row << "," << c.objects << "," << c.triangles << "," << c.load_ms << "," << c.render_ms
-          << "," << c.readback_ms << "," << c.compress_ms << "," << c.bytes_raw << ","
-          << c.bytes_sent;
+      row << "," << c.objects << "," << c.occluders << "," << c.queried << "," << c.visible << ","
+          << c.triangles << "," << c.prepare_ms << "," << c.retrieve_ms << "," << c.pass_ms << ","
+          << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms
+          << "," << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent;
     csv_ += row.str() + "\n";
     if (!opts_.stats.empty()) writeFileAtomic(opts_.stats, csv_);  // flushed frame by frame
     last_done_ = done;

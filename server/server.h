@@ -16,7 +16,9 @@ struct ServerOptions {
   std::string out;    // frames: frame_NNNNNN.png
   std::string stats;  // optional per-frame CSV
   ViewOptions view;
-  int in_flight = 2;  // frames sent ahead of the last one assembled
+  // Frames sent ahead of the last one assembled: 3 keeps the server, the
+  // visibility and the render stage busy on frames i, i-1, i-2; 1 serialises.
+  int in_flight = 3;
   bool progress = true;
 };
 

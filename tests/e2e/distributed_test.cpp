@@ -120,10 +120,10 @@ TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
 TEST(DistributedErrors, ClientWithoutAContextStopsTheRunWithItsMessage) {
   SmallScene& s = smallScene();
   int status = 0;
-  std::string log = s.render(2, s.dir / "nodevice", "--backend egl --egl-device 99", &status);
+  std::string log = s.render(2, s.dir / "nodevice", "--backend egl --render-egl-device 99", &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank hung";
-  EXPECT_NE(log.find("client 1 (rank 1): egl:"), std::string::npos) << log;
+  EXPECT_NE(log.find("client 1 (rank 1): egl: device 99"), std::string::npos) << log;
 }
 
 TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {

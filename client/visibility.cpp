@@ -1,0 +1,43 @@
+#include "visibility.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace dmmr {
+
+VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
+                              const std::vector<uint32_t>& previous,
+                              const std::vector<uint32_t>& potential,
+                              const std::vector<uint32_t>& marked_until, uint32_t frame) {
+  VisibilityPlan p;
+  auto prev = previous.begin(), pot = potential.begin();
+  for (uint32_t o : region) {
+    while (prev != previous.end() && *prev < o) ++prev;
+    while (pot != potential.end() && *pot < o) ++pot;
+    bool occluder = (prev != previous.end() && *prev == o) || (pot != potential.end() && *pot == o);
+    if (occluder) p.occluders.push_back(o);
+    else if (o < marked_until.size() && frame < marked_until[o]) p.marked.push_back(o);
+    else p.queried.push_back(o);
+  }
+  return p;
+}
+
+std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& lists) {
+  std::vector<uint32_t> out;
+  for (const auto& l : lists) out.insert(out.end(), l.begin(), l.end());
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+bool boxReachesNearPlane(const Box3d& box, const Camera& camera) {
+  // Every point of the near rectangle lies within `reach` of the eye.
+  double ty = std::tan(camera.fovy_deg * M_PI / 360.0), tx = ty * camera.aspect;
+  double reach = camera.near * std::sqrt(1 + tx * tx + ty * ty) * 1.01;
+  Vec3d e = camera.eye;
+  Vec3d nearest{std::clamp(e.x, box.lo.x, box.hi.x), std::clamp(e.y, box.lo.y, box.hi.y),
+                std::clamp(e.z, box.lo.z, box.hi.z)};
+  return length(nearest - e) <= reach;
+}
+
+}  // namespace dmmr

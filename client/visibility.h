@@ -1,0 +1,54 @@
+// The client's visibility stage (DMMR paper, section 3.5): occluders drawn
+// into depth, every other object of the region tested with a hardware
+// occlusion query on its bounding box.
+//
+// Conservative by default, so frames stay identical to dmmr-reference: the
+// occluders are real geometry at full detail drawn by the render stage's own
+// code (so their depth is the render pass's), a query passes on a single
+// sample, ties in depth count as visible, query boxes are widened against
+// rounding, and an object whose box reaches the camera's near plane is taken
+// without a query. An object dropped by this stage has every pixel it could
+// cover strictly behind geometry that the render stage draws too.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "camera.h"
+#include "formats.h"
+
+namespace dmmr {
+
+struct VisibilityOptions {
+  bool enabled = true;
+  // Samples a box must pass to count as visible; 0 means any sample.
+  // Anything above 0 is an approximation.
+  uint32_t query_threshold = 0;
+  // An object that passed stays marked visible, without queries, for this
+  // many further frames (the paper's n). Any n is conservative.
+  uint32_t keep_frames = 3;
+};
+
+// Which objects of a region the stage draws as occluders, which it takes as
+// marked, and which it queries. Pure: plain sorted lists in, out.
+struct VisibilityPlan {
+  std::vector<uint32_t> occluders;  // previous frame's visible + potential occluders, in the region
+  std::vector<uint32_t> marked;     // passed a query recently, not occluders
+  std::vector<uint32_t> queried;    // the rest
+};
+
+// `region`, `previous` and `potential` ascending; `marked_until[i]` is the
+// first frame at which object i must be queried again.
+VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
+                              const std::vector<uint32_t>& previous,
+                              const std::vector<uint32_t>& potential,
+                              const std::vector<uint32_t>& marked_until, uint32_t frame);
+
+// Ascending union of sorted lists.
+std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& lists);
+
+// True when the box comes within reach of the near plane's rectangle, where a
+// query on it would be clipped away and prove nothing.
+bool boxReachesNearPlane(const Box3d& box, const Camera& camera);
+
+}  // namespace dmmr
