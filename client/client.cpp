@@ -60,45 +60,71 @@ class VisibilityStage {
       return out;
     }
     auto t0 = Clock::now();
-    VisibilityPlan plan =
-        planVisibility(job.objects, previous_, scene_.occluders, marked_until_, job.frame);
+    static const std::vector<uint32_t> kNone;
+    const auto& potential =
+        opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
+    VisibilityPlan plan = planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
     for (uint32_t o : plan.occluders)
       r.draw(gl_.meshes.acquire(scene_.objects[o].geometry), scene_.objects[o].transform,
              gl_.meshes.textures());
-    // Queries: objects whose box reaches the near plane are taken untested.
-    std::vector<uint32_t> passed, tested;
-    if (queries_.size() < plan.queried.size()) growQueries(plan.queried.size());
+    // Queries: every object not marked, occluders included (an occluder hidden
+    // by other occluders need not be drawn; one that shows passes against its
+    // own depth, since its widened box lies in front of it). Hierarchically:
+    // runs of consecutive candidates (object indices follow the skeleton's
+    // pre-order, so runs are spatially coherent) are tested by their union
+    // box first, and only the runs that pass are split and tested again. A
+    // union box encloses its members' boxes, so a run that fails hides them
+    // all. Boxes that reach the near plane are never queried: they pass.
+    std::vector<uint32_t> candidates = mergeSorted({plan.occluders, plan.queried});
+    std::vector<uint32_t> passed;
+    std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
     GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
-    r.beginQueries();
-    for (uint32_t o : plan.queried) {
-      const Box3d& box = scene_.objects[o].box;
-      if (boxReachesNearPlane(box, job.camera)) {
-        passed.push_back(o);
-        continue;
-      }
-      r.queryBox(box, queries_[tested.size()], target);
-      tested.push_back(o);
-    }
-    r.endQueries();
-    out.stats.prepare_ms = msSince(t0);
-    auto t1 = Clock::now();
     const GlApi& gl = gl_.context->gl();
-    for (size_t i = 0; i < tested.size(); ++i) {
-      GLuint samples = 0;
-      gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
-      if (target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold)
-        passed.push_back(tested[i]);
+    double retrieve = 0;
+    size_t issued = 0;
+    for (size_t size : {size_t(16), size_t(4), size_t(1)}) {
+      std::vector<std::pair<size_t, size_t>> asked;
+      next.clear();
+      r.beginQueries();
+      for (auto [begin, end] : runs)
+        for (size_t b = begin; b < end; b += size) {
+          size_t e = std::min(end, b + size);
+          Box3d box;
+          for (size_t k = b; k < e; ++k) box.expand(scene_.objects[candidates[k]].box);
+          if (boxReachesNearPlane(box, job.camera)) {
+            if (e - b == 1) passed.push_back(candidates[b]);
+            else next.push_back({b, e});
+            continue;
+          }
+          if (queries_.size() <= asked.size()) growQueries(asked.size() + 1);
+          r.queryBox(box, queries_[asked.size()], target);
+          asked.push_back({b, e});
+        }
+      r.endQueries();
+      issued += asked.size();
+      auto tq = Clock::now();
+      for (size_t i = 0; i < asked.size(); ++i) {
+        GLuint samples = 0;
+        gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
+        bool shows = target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold;
+        if (!shows) continue;
+        if (asked[i].second - asked[i].first == 1) passed.push_back(candidates[asked[i].first]);
+        else next.push_back(asked[i]);
+      }
+      retrieve += msSince(tq);
+      runs.swap(next);
     }
     gl.check("occlusion queries");
+    out.stats.prepare_ms = msSince(t0) - retrieve;
+    out.stats.retrieve_ms = retrieve;
     for (uint32_t o : passed) marked_until_[o] = job.frame + 1 + opts_.keep_frames;
     std::sort(passed.begin(), passed.end());
-    out.visible = mergeSorted({plan.occluders, plan.marked, passed});
+    out.visible = mergeSorted({plan.marked, passed});
     previous_ = out.visible;
-    out.stats.retrieve_ms = msSince(t1);
     out.stats.occluders = plan.occluders.size();
-    out.stats.queried = tested.size();
+    out.stats.queried = issued;
     out.stats.visible = out.visible.size();
     out.job = std::move(job);
     return out;

@@ -33,6 +33,30 @@ Image toImage(int w, int h, const std::vector<uint8_t>& bottomUp) {
   return img;
 }
 
+struct ExactVisible {
+  uint64_t objects = 0, triangles = 0;
+};
+
+// Objects owning at least one pixel of the frame, from an object-id render.
+ExactVisible exactVisible(const Scene& scene, MeshProvider& meshes, Renderer& r, const Camera& cam,
+                          const Rect& full) {
+  r.beginIdFrame(cam, full);
+  for (uint32_t i = 0; i < scene.objects.size(); ++i)
+    r.drawId(meshes.acquire(scene.objects[i].geometry), scene.objects[i].transform, i);
+  std::vector<uint8_t> px;
+  r.readPixels(full, &px);
+  std::vector<uint8_t> seen(scene.objects.size(), 0);
+  ExactVisible ev;
+  for (size_t p = 0; p < px.size(); p += 4) {
+    uint32_t v = px[p] | (uint32_t(px[p + 1]) << 8) | (uint32_t(px[p + 2]) << 16);
+    if (v == 0 || v > scene.objects.size() || seen[v - 1]) continue;
+    seen[v - 1] = 1;
+    ++ev.objects;
+    ev.triangles += scene.objects[v - 1].weight;
+  }
+  return ev;
+}
+
 }  // namespace
 
 void runReference(const ReferenceOptions& opts) {
@@ -46,7 +70,8 @@ void runReference(const ReferenceOptions& opts) {
   // Every geometry is uploaded once, on first use; instances share it.
   KeepAllMeshProvider meshes(scene, renderer);
 
-  std::string csv = "frame,frame_ms,draw_ms,objects,triangles\n";
+  std::string csv = "frame,frame_ms,draw_ms,objects,triangles";
+  csv += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles\n" : "\n";
   double near = opts.view.near > 0 ? opts.view.near : defaultNear(scene);
   Rect full{0, 0, opts.view.width, opts.view.height};
   std::vector<uint8_t> pixels;
@@ -65,9 +90,16 @@ void runReference(const ReferenceOptions& opts) {
     writePng(opts.out + "/" + frameFileName(f), toImage(opts.view.width, opts.view.height, pixels));
     double frame_ms = msSince(t0);
     char line[160];
-    std::snprintf(line, sizeof line, "%zu,%.3f,%.3f,%zu,%llu\n", f, frame_ms, draw_ms,
+    std::snprintf(line, sizeof line, "%zu,%.3f,%.3f,%zu,%llu", f, frame_ms, draw_ms,
                   scene.objects.size(), static_cast<unsigned long long>(tris));
     csv += line;
+    if (opts.exact_visible) {
+      ExactVisible ev = exactVisible(scene, meshes, renderer, cam, full);
+      std::snprintf(line, sizeof line, ",%llu,%llu", static_cast<unsigned long long>(ev.objects),
+                    static_cast<unsigned long long>(ev.triangles));
+      csv += line;
+    }
+    csv += "\n";
     if (!opts.stats.empty()) writeFileAtomic(opts.stats, csv);  // flushed as frames finish
     if (opts.progress)
       std::fprintf(stderr, "\rdmmr-reference: frame %zu/%zu (%.0f ms)", f + 1, path.points.size(),

@@ -18,6 +18,10 @@ struct ReferenceOptions {
   ViewOptions view;
   ContextOptions context;
   bool progress = true;
+  // Also render an object-id frame per frame and add to the stats the
+  // exactly visible set: objects owning at least one pixel, and their
+  // triangles (the lower bound any culling can reach).
+  bool exact_visible = false;
 };
 
 // Throws Error on bad input; frames already written stay on disk.

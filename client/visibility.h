@@ -27,6 +27,9 @@ struct VisibilityOptions {
   // An object that passed stays marked visible, without queries, for this
   // many further frames (the paper's n). Any n is conservative.
   uint32_t keep_frames = 3;
+  // Draw the preprocessor's potential occluders into depth every frame, or
+  // only while there is no previous visible list (the first frame).
+  bool potential_every_frame = false;
 };
 
 // Which objects of a region the stage draws as occluders, which it takes as

@@ -62,6 +62,12 @@ uniform mat4 u_proj;
 void main() { gl_Position = u_proj * (u_mv * vec4(a_pos, 1.0)); }
 )";
 
+const char* kIdFragmentShader = R"(#version 450 core
+uniform vec4 u_color;
+out vec4 o_color;
+void main() { o_color = u_color; }
+)";
+
 const char* kBoxFragmentShader = R"(#version 450 core
 out vec4 o_color;
 void main() { o_color = vec4(1.0); }
@@ -129,6 +135,10 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
 
   program_ = link(gl_, kVertexShader, kFragmentShader);
   box_program_ = link(gl_, kBoxVertexShader, kBoxFragmentShader);
+  id_program_ = link(gl_, kBoxVertexShader, kIdFragmentShader);
+  u_id_mv_ = gl_.GetUniformLocation(id_program_, "u_mv");
+  u_id_proj_ = gl_.GetUniformLocation(id_program_, "u_proj");
+  u_id_color_ = gl_.GetUniformLocation(id_program_, "u_color");
   u_box_mv_ = gl_.GetUniformLocation(box_program_, "u_mv");
   u_box_proj_ = gl_.GetUniformLocation(box_program_, "u_proj");
   // The unit cube [-1, 1]^3 that query boxes scale and place.
@@ -166,6 +176,7 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
 Renderer::~Renderer() {
   gl_.DeleteProgram(program_);
   gl_.DeleteProgram(box_program_);
+  gl_.DeleteProgram(id_program_);
   gl_.DeleteBuffers(2, box_buffers_);
   gl_.DeleteVertexArrays(1, &box_vao_);
   gl_.DeleteRenderbuffers(1, &color_rb_);
@@ -287,13 +298,40 @@ void Renderer::endQueries() {
   gl_.UseProgram(program_);
 }
 
-void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,
-                    const std::vector<GLuint>& textures) {
+Mat4d Renderer::cameraRelative(const Mat4d& object_to_world) const {
   // Camera-relative in double: subtract the eye from the object's translation
   // before anything becomes float, so far-away scenes keep their precision.
   Mat4d rel = object_to_world;
   for (int i = 0; i < 3; ++i) rel.at(i, 3) -= camera_.eye[i];
-  Mat4d mv = view_rotation_ * rel;
+  return view_rotation_ * rel;
+}
+
+void Renderer::beginIdFrame(const Camera& camera, const Rect& region) {
+  beginFrame(camera, region, Rgb{0, 0, 0});
+  gl_.UseProgram(id_program_);
+  float proj[16];
+  toFloat(projectionMatrix(camera_), proj);
+  gl_.UniformMatrix4fv(u_id_proj_, 1, GL_FALSE, proj);
+}
+
+void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id) {
+  float mvf[16];
+  toFloat(cameraRelative(object_to_world), mvf);
+  uint32_t v = id + 1;
+  float color[4] = {float(v & 0xFF) / 255.f, float((v >> 8) & 0xFF) / 255.f,
+                    float((v >> 16) & 0xFF) / 255.f, 1.f};
+  gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
+  gl_.Uniform4fv(u_id_color_, 1, color);
+  gl_.BindVertexArray(mesh.vao);
+  for (const SubMesh& s : mesh.submeshes)
+    gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+  gl_.BindVertexArray(0);
+}
+
+void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,
+                    const std::vector<GLuint>& textures) {
+  Mat4d mv = cameraRelative(object_to_world);
   Mat4d inv;
   float mvf[16], nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   toFloat(mv, mvf);

@@ -66,6 +66,12 @@ class Renderer {
   void queryBox(const Box3d& world_box, GLuint query, GLenum target);
   void endQueries();
 
+  // Object-id frames: each object drawn flat in the colour id + 1 (24 bits,
+  // 0 is background) with the same vertex transform and depth test as draw(),
+  // so that the id buffer says which object owns each pixel of the frame.
+  void beginIdFrame(const Camera& camera, const Rect& region);
+  void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id);
+
   // Draws one object; `textures` maps texture file indices to GL names.
   void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);
   // Reads `region` as RGBA8, bottom row first (GL order).
@@ -78,9 +84,12 @@ class Renderer {
   GLuint fbo_ = 0, color_rb_ = 0, depth_rb_ = 0, program_ = 0;
   GLuint box_program_ = 0, box_vao_ = 0, box_buffers_[2] = {};
   GLint u_box_mv_ = -1, u_box_proj_ = -1;
+  GLuint id_program_ = 0;
+  GLint u_id_mv_ = -1, u_id_proj_ = -1, u_id_color_ = -1;
   GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
   Camera camera_;
   Mat4d view_rotation_;
+  Mat4d cameraRelative(const Mat4d& object_to_world) const;
 };
 
 }  // namespace dmmr
