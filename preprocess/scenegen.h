@@ -76,10 +76,12 @@ osg::ref_ptr<osg::Node> makeMonument(const MonumentParams& params);
 osg::ref_ptr<osg::Node> replicate(osg::Node* input, uint32_t copies, double spacing);
 
 enum class PathKind {
-  // From outside the box on its -X side, across at one third of the height
-  // with a gentle turn (Y follows a parabola), looking forward and 10 degrees
-  // down; on the middle frame the camera is at 0.35 of the X extent heading +X
-  // straight at the centre. For plants, monuments and replicated scenes.
+  // From 0.2 of the X extent outside the box's -X side to 0.9 of the way
+  // across, at one third of the height, with a gentle turn (Y follows a
+  // parabola, heading within ~25 degrees of +X), looking forward and 10 degrees
+  // down. On the middle frame the camera is at 0.35 of the X extent and 0.05 of
+  // the Y extent off the centre, heading +X, so the centre lies ahead. For
+  // plants, monuments and replicated scenes.
   FlyThrough,
   // A full circle around the box centre at 2.2 * half its diagonal, 20 degrees
   // above the horizon, always looking at the centre. For arbitrary models.

@@ -1,0 +1,169 @@
+// dmmr-scenegen: writes a generated test scene (.osgb) and a camera path for it.
+//
+//   dmmr-scenegen plant    [--seed S] [--triangles T] [--geodes G] -o OUT.osgb
+//   dmmr-scenegen monument [--seed S] [--triangles T] [--geodes G] -o OUT.osgb
+//   dmmr-scenegen replicate --copies N (--input FILE | --of plant|monument ...)
+//                 [--spacing M] -o OUT.osgb
+// Every command also takes --walkthrough PATH (default: OUT with extension
+// .path), --frames N (default 120) and --path fly|orbit.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <osgDB/FileNameUtils>
+#include <osgDB/ReadFile>
+#include <osgDB/WriteFile>
+
+#include "error.h"
+#include "scenegen.h"
+#include "walkthrough.h"
+
+namespace sg = dmmr::scenegen;
+
+namespace {
+
+struct Options {
+  std::string output, walkthrough, input, of, path;
+  uint32_t frames = 120, copies = 0;
+  double spacing = 0;
+  uint64_t seed = 1, triangles = 1'000'000;
+  uint32_t geodes = 0;
+  bool geodesGiven = false;  // else each generator's own default
+};
+
+void addOutputOptions(CLI::App* cmd, Options& o) {
+  cmd->add_option("-o,--output", o.output, "output scene, e.g. scene.osgb")->required();
+  cmd->add_option("--walkthrough", o.walkthrough, "camera path to write (default: OUT.path)");
+  cmd->add_option("--frames", o.frames, "control points in the camera path")->capture_default_str();
+  cmd->add_option("--path", o.path,
+                  "camera path kind (default: fly, orbit for one copy of a model)")
+      ->check(CLI::IsMember({"fly", "orbit"}));
+}
+
+void addGeneratorOptions(CLI::App* cmd, Options& o) {
+  cmd->add_option("--seed", o.seed, "random seed")->capture_default_str();
+  cmd->add_option("--triangles", o.triangles, "target triangle count")->capture_default_str();
+  cmd->add_option("--geodes", o.geodes, "target geode count (default: 20000 plant, 1000 monument)");
+}
+
+osg::ref_ptr<osg::Node> generate(const std::string& kind, const Options& o) {
+  if (kind == "plant") {
+    sg::PlantParams p{o.seed, o.triangles};
+    if (o.geodesGiven) p.geodes = o.geodes;
+    return sg::makePlant(p);
+  }
+  sg::MonumentParams p{o.seed, o.triangles};
+  if (o.geodesGiven) p.geodes = o.geodes;
+  return sg::makeMonument(p);
+}
+
+osg::ref_ptr<osg::Node> readInput(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw dmmr::Error(dmmr::fileError(path, "cannot open input (no such file)"));
+  osg::ref_ptr<osg::Node> n = osgDB::readRefNodeFile(path);
+  if (!n) throw dmmr::Error(dmmr::fileError(path, "cannot read input as a model"));
+  return n;
+}
+
+// Writes through a temporary file beside OUT (same extension, so the same OSG
+// writer), then renames, so readers never see a partial scene.
+void writeSceneAtomic(osg::Node& node, const std::string& out) {
+  std::string ext = osgDB::getFileExtension(out);
+  if (ext.empty())
+    throw dmmr::Error(dmmr::fileError(out, "output needs an extension OSG can write, e.g. .osgb"));
+  std::string tmp = out + ".tmp" + std::to_string(::getpid()) + "." + ext;
+  if (!osgDB::writeNodeFile(node, tmp)) {
+    std::remove(tmp.c_str());
+    throw dmmr::Error(dmmr::fileError(
+        out, "cannot write scene (unwritable folder or no writer for ." + ext + ")"));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, out, ec);
+  if (ec) {
+    std::remove(tmp.c_str());
+    throw dmmr::Error(dmmr::fileError(out, "cannot write scene: " + ec.message()));
+  }
+}
+
+void run(const std::string& command, Options& o) {
+  auto start = std::chrono::steady_clock::now();
+  if (o.frames == 0) throw dmmr::Error("--frames must be at least 1");
+  if (o.triangles == 0) throw dmmr::Error("--triangles must be at least 1");
+  if (o.geodesGiven && o.geodes == 0) throw dmmr::Error("--geodes must be at least 1");
+  bool orbit = false;
+  osg::ref_ptr<osg::Node> scene;
+  if (command == "replicate") {
+    if (o.copies == 0) throw dmmr::Error("--copies must be at least 1");
+    if (o.input.empty() == o.of.empty())
+      throw dmmr::Error("replicate needs exactly one of --input FILE or --of plant|monument");
+    osg::ref_ptr<osg::Node> input = o.of.empty() ? readInput(o.input) : generate(o.of, o);
+    try {
+      scene = sg::replicate(input.get(), o.copies, o.spacing);
+    } catch (const dmmr::Error& e) {
+      throw dmmr::Error(o.input.empty() ? e.what() : dmmr::fileError(o.input, e.what()));
+    }
+    orbit = o.of.empty() && o.copies == 1;
+  } else {
+    scene = generate(command, o);
+  }
+  if (!o.path.empty()) orbit = o.path == "orbit";
+  if (o.walkthrough.empty()) o.walkthrough = osgDB::getNameLessExtension(o.output) + ".path";
+
+  dmmr::Walkthrough w = sg::makeWalkthrough(sg::sceneBounds(*scene), o.frames,
+                                            orbit ? sg::PathKind::Orbit : sg::PathKind::FlyThrough);
+  writeSceneAtomic(*scene, o.output);
+  dmmr::writeWalkthrough(o.walkthrough, w);
+
+  sg::SceneStats s = sg::sceneStats(*scene);
+  double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf(
+      "%s: %llu geodes (%llu unique), %llu unique geometries, %llu triangles, %llu instanced "
+      "triangles; walkthrough %s (%u frames); %.1f s\n",
+      o.output.c_str(), (unsigned long long)s.geodeInstances, (unsigned long long)s.geodes,
+      (unsigned long long)s.geometries, (unsigned long long)s.triangles,
+      (unsigned long long)s.instancedTriangles, o.walkthrough.c_str(), o.frames, secs);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Generates dmmr test scenes and camera paths through them."};
+  app.require_subcommand(1, 1);
+  Options o;
+  CLI::App* plant = app.add_subcommand("plant", "an industrial plant, about 100 x 100 x 40 m");
+  CLI::App* monument = app.add_subcommand("monument", "a monument site, about 400 x 400 m");
+  CLI::App* rep = app.add_subcommand("replicate", "copies of a model on a grid, instanced");
+  for (CLI::App* cmd : {plant, monument, rep}) {
+    addOutputOptions(cmd, o);
+    addGeneratorOptions(cmd, o);
+  }
+  rep->add_option("--copies", o.copies, "number of copies")->required();
+  rep->add_option("--spacing", o.spacing, "grid spacing in metres (<= 0: automatic)");
+  rep->add_option("--input", o.input, "model to replicate (any format OSG reads)");
+  rep->add_option("--of", o.of, "replicate a freshly generated scene instead")
+      ->check(CLI::IsMember({"plant", "monument"}));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "dmmr-scenegen: %s\n", e.what());
+    return 1;
+  }
+  try {
+    CLI::App* cmd = app.get_subcommands().front();
+    o.geodesGiven = cmd->count("--geodes") > 0;
+    run(cmd->get_name(), o);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dmmr-scenegen: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
