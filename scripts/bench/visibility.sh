@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Occlusion culling on one client: triangles drawn against the frustum and the
+# exactly visible set, frame time against dmmr-reference, pipelined against
+# serialised stages, and the speed-against-error sweep of the faster settings.
+# usage: scripts/bench/visibility.sh   (writes out/bench/vis/, prints Markdown)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+bin=build/bin
+out=out/bench/vis
+size=${DMMR_BENCH_SIZE:-512}
+mpi=(mpirun --oversubscribe -np 2)
+[ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
+mkdir -p "$out"
+
+scene() {  # name, scenegen arguments...
+  local name=$1
+  shift
+  [ -f "out/bench/$name.osgb" ] || $bin/dmmr-scenegen "$@" -o "out/bench/$name.osgb" \
+    --walkthrough "out/bench/$name.generated.path" >/dev/null
+  [ -d "out/bench/$name.scene" ] || $bin/dmmr-preprocess "out/bench/$name.osgb" -o "out/bench/$name.scene" --no-progress >/dev/null
+}
+scene plant10m plant --seed 1 --triangles 10000000 --frames 60
+scene monument4m monument --seed 1 --triangles 4000000 --frames 60
+
+render() {  # scene, path, label, extra options...
+  local s=$1 p=$2 label=$3
+  shift 3
+  "${mpi[@]}" $bin/dmmr-render --scene "out/bench/$s.scene" --walkthrough "$p" --out "$out/$label" \
+    --width "$size" --height "$size" --stats "$out/$label.csv" --no-progress "$@"
+  $bin/dmmr-compare "$out/ref-$s" "$out/$label" --csv "$out/$label.cmp.csv" --min-psnr 0 \
+    --max-diff-pixels 999999999 >/dev/null
+}
+
+for s in plant10m monument4m; do
+  p=walkthroughs/$s.path
+  $bin/dmmr-reference --scene "out/bench/$s.scene" --walkthrough "$p" --out "$out/ref-$s" \
+    --width "$size" --height "$size" --stats "$out/ref-$s.csv" --exact-visible --no-progress
+  render "$s" "$p" "$s-pipelined"
+  render "$s" "$p" "$s-serial" --in-flight 1
+  render "$s" "$p" "$s-frustum-only" --visibility off
+  for t in 0 16 64; do
+    for k in 3 10; do
+      render "$s" "$p" "$s-t$t-k$k" --query-threshold $t --keep-frames $k
+    done
+  done
+done
+python3 scripts/bench/visibility_report.py "$out" plant10m monument4m
