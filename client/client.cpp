@@ -63,7 +63,8 @@ class VisibilityStage {
     static const std::vector<uint32_t> kNone;
     const auto& potential =
         opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
-    VisibilityPlan plan = planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
+    VisibilityPlan plan =
+        planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
     for (uint32_t o : plan.occluders)
@@ -94,8 +95,10 @@ class VisibilityStage {
           Box3d box;
           for (size_t k = b; k < e; ++k) box.expand(scene_.objects[candidates[k]].box);
           if (boxReachesNearPlane(box, job.camera)) {
-            if (e - b == 1) passed.push_back(candidates[b]);
-            else next.push_back({b, e});
+            if (e - b == 1)
+              passed.push_back(candidates[b]);
+            else
+              next.push_back({b, e});
             continue;
           }
           if (queries_.size() <= asked.size()) growQueries(asked.size() + 1);
@@ -108,10 +111,13 @@ class VisibilityStage {
       for (size_t i = 0; i < asked.size(); ++i) {
         GLuint samples = 0;
         gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
-        bool shows = target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold;
+        bool shows =
+            target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold;
         if (!shows) continue;
-        if (asked[i].second - asked[i].first == 1) passed.push_back(candidates[asked[i].first]);
-        else next.push_back(asked[i]);
+        if (asked[i].second - asked[i].first == 1)
+          passed.push_back(candidates[asked[i].first]);
+        else
+          next.push_back(asked[i]);
       }
       retrieve += msSince(tq);
       runs.swap(next);

@@ -77,7 +77,8 @@ void runReference(const ReferenceOptions& opts) {
   std::vector<uint8_t> pixels;
   for (size_t f = 0; f < path.points.size(); ++f) {
     auto t0 = Clock::now();
-    Camera cam = cameraAt(path.points[f], opts.view.width, opts.view.height, opts.view.fovy_deg, near);
+    Camera cam =
+        cameraAt(path.points[f], opts.view.width, opts.view.height, opts.view.fovy_deg, near);
     renderer.beginFrame(cam, full);
     uint64_t tris = 0;
     for (const ObjectBounds& o : scene.objects) {  // ascending object index

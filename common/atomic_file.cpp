@@ -38,7 +38,8 @@ void writeFileAtomic(const std::string& path, std::string_view bytes) {
 }
 
 void writeFileAtomic(const std::string& path, const std::vector<uint8_t>& bytes) {
-  writeFileAtomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  writeFileAtomic(path,
+                  std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 std::vector<uint8_t> readFileBytes(const std::string& path) {

@@ -39,7 +39,9 @@ void ByteReader::finish() const {
   if (p_ != end_) fail(std::to_string(remaining()) + " trailing bytes after the payload");
 }
 
-void ByteReader::fail(const std::string& what) const { throw Error(fileError(path_, what)); }
+void ByteReader::fail(const std::string& what) const {
+  throw Error(fileError(path_, what));
+}
 
 std::vector<uint8_t> wrapContainer(const FileKind& kind, const std::vector<uint8_t>& payload) {
   ByteWriter w;

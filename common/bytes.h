@@ -44,8 +44,9 @@ class ByteWriter {
 
  private:
   template <size_t N>
-  using UInt = std::conditional_t<N == 1, uint8_t,
-               std::conditional_t<N == 2, uint16_t, std::conditional_t<N == 4, uint32_t, uint64_t>>>;
+  using UInt = std::conditional_t<
+      N == 1, uint8_t,
+      std::conditional_t<N == 2, uint16_t, std::conditional_t<N == 4, uint32_t, uint64_t>>>;
   template <typename U>
   void putLE(U v) {
     for (size_t i = 0; i < sizeof(U); ++i) out_.push_back(uint8_t(v >> (8 * i)));
@@ -86,8 +87,9 @@ class ByteReader {
 
  private:
   template <size_t N>
-  using UInt = std::conditional_t<N == 1, uint8_t,
-               std::conditional_t<N == 2, uint16_t, std::conditional_t<N == 4, uint32_t, uint64_t>>>;
+  using UInt = std::conditional_t<
+      N == 1, uint8_t,
+      std::conditional_t<N == 2, uint16_t, std::conditional_t<N == 4, uint32_t, uint64_t>>>;
   void need(uint64_t count, size_t elem, const char* field);
   template <typename U>
   U getLE(const char* field) {
@@ -112,7 +114,8 @@ inline constexpr size_t kContainerOverhead = 8 + 4 + 8 + 4;
 
 std::vector<uint8_t> wrapContainer(const FileKind& kind, const std::vector<uint8_t>& payload);
 // Validates the container and returns the payload's [begin, size) within `file`.
-std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind, const std::vector<uint8_t>& file,
+std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind,
+                                                const std::vector<uint8_t>& file,
                                                 const std::string& path);
 
 }  // namespace dmmr

@@ -3,8 +3,8 @@
 namespace dmmr {
 
 std::ostream& operator<<(std::ostream& os, const Camera& c) {
-  return os << "camera[eye " << c.eye << " " << c.rotation << " fovy " << c.fovy_deg
-            << " aspect " << c.aspect << " near " << c.near << "]";
+  return os << "camera[eye " << c.eye << " " << c.rotation << " fovy " << c.fovy_deg << " aspect "
+            << c.aspect << " near " << c.near << "]";
 }
 
 Mat4d viewRotation(const Camera& c) {
@@ -15,7 +15,9 @@ Mat4d viewRotation(const Camera& c) {
   return t;
 }
 
-Mat4d viewMatrix(const Camera& c) { return viewRotation(c) * Mat4d::translate(-c.eye); }
+Mat4d viewMatrix(const Camera& c) {
+  return viewRotation(c) * Mat4d::translate(-c.eye);
+}
 
 Mat4d projectionMatrix(const Camera& c) {
   double f = 1.0 / std::tan(c.fovy_deg * M_PI / 360.0);
@@ -31,8 +33,11 @@ std::array<Plane, 5> frustumPlanes(const Camera& c) {
   double ty = std::tan(c.fovy_deg * M_PI / 360.0);
   double tx = ty * c.aspect;
   // Eye-space planes: inside when n.p + d >= 0 (the camera looks down -Z).
-  Plane eye[5] = {{{1, 0, -tx}, 0}, {{-1, 0, -tx}, 0}, {{0, 1, -ty}, 0},
-                  {{0, -1, -ty}, 0}, {{0, 0, -1}, -c.near}};
+  Plane eye[5] = {{{1, 0, -tx}, 0},
+                  {{-1, 0, -tx}, 0},
+                  {{0, 1, -ty}, 0},
+                  {{0, -1, -ty}, 0},
+                  {{0, 0, -1}, -c.near}};
   Mat4d r = Mat4d::rotation(c.rotation);
   std::array<Plane, 5> out;
   for (int i = 0; i < 5; ++i) {

@@ -18,9 +18,12 @@ Codec parseCodec(const std::string& name) {
 
 const char* codecName(Codec c) {
   switch (c) {
-    case Codec::None: return "none";
-    case Codec::LZ4: return "lz4";
-    case Codec::Zlib: return "zlib";
+    case Codec::None:
+      return "none";
+    case Codec::LZ4:
+      return "lz4";
+    case Codec::Zlib:
+      return "zlib";
   }
   return "unknown";
 }
@@ -39,7 +42,8 @@ std::vector<uint8_t> compress(Codec c, const uint8_t* data, size_t size) {
   }
   uLongf n = compressBound(uLong(size));
   out.resize(n);
-  if (compress2(out.data(), &n, data, uLong(size), 1) != Z_OK) throw Error("zlib compression failed");
+  if (compress2(out.data(), &n, data, uLong(size), 1) != Z_OK)
+    throw Error("zlib compression failed");
   out.resize(n);
   return out;
 }

@@ -235,7 +235,9 @@ GLuint Renderer::uploadTexture(const TextureData& t) {
   return id;
 }
 
-void Renderer::releaseTexture(GLuint id) { gl_.DeleteTextures(1, &id); }
+void Renderer::releaseTexture(GLuint id) {
+  gl_.DeleteTextures(1, &id);
+}
 
 void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
   camera_ = camera;
@@ -362,6 +364,8 @@ void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
   gl_.check("readPixels");
 }
 
-void Renderer::finish() { gl_.Finish(); }
+void Renderer::finish() {
+  gl_.Finish();
+}
 
 }  // namespace dmmr

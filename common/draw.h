@@ -25,7 +25,7 @@ struct GpuMesh {
   GLuint buffers[5] = {};  // positions, normals, colors, texcoords, indices
   bool has_normals = false;
   std::vector<SubMesh> submeshes;
-  uint64_t bytes = 0;      // GPU memory held (buffers only)
+  uint64_t bytes = 0;  // GPU memory held (buffers only)
   uint64_t triangles = 0;
 };
 

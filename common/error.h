@@ -23,15 +23,15 @@ std::string fileError(const std::string& path, long line, const std::string& wha
 }  // namespace dmmr
 
 // CHECK guards internal invariants (programming errors), never user input.
-#define DMMR_CHECK(cond)                                              \
-  do {                                                                \
+#define DMMR_CHECK(cond)                                             \
+  do {                                                               \
     if (!(cond)) ::dmmr::checkFailed(#cond, __FILE__, __LINE__, {}); \
   } while (0)
-#define DMMR_CHECK_MSG(cond, msg)                                                  \
-  do {                                                                             \
-    if (!(cond)) {                                                                 \
-      std::ostringstream dmmr_check_os_;                                           \
-      dmmr_check_os_ << msg;                                                       \
-      ::dmmr::checkFailed(#cond, __FILE__, __LINE__, dmmr_check_os_.str());        \
-    }                                                                              \
+#define DMMR_CHECK_MSG(cond, msg)                                           \
+  do {                                                                      \
+    if (!(cond)) {                                                          \
+      std::ostringstream dmmr_check_os_;                                    \
+      dmmr_check_os_ << msg;                                                \
+      ::dmmr::checkFailed(#cond, __FILE__, __LINE__, dmmr_check_os_.str()); \
+    }                                                                       \
   } while (0)

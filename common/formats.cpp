@@ -48,7 +48,9 @@ ByteReader payloadReader(const FileKind& kind, const std::vector<uint8_t>& file,
   return ByteReader(p, n, path);
 }
 
-std::string at(const char* what, size_t i) { return std::string(what) + " " + std::to_string(i); }
+std::string at(const char* what, size_t i) {
+  return std::string(what) + " " + std::to_string(i);
+}
 
 }  // namespace
 
@@ -94,7 +96,8 @@ std::vector<ObjectBounds> decodeBounds(const std::vector<uint8_t>& file, const s
     for (int row = 0; row < 3; ++row)
       for (int c = 0; c < 4; ++c) {
         o.transform.at(row, c) = r.f64("transform");
-        if (!std::isfinite(o.transform.at(row, c))) r.fail(at("object", i) + ": transform not finite");
+        if (!std::isfinite(o.transform.at(row, c)))
+          r.fail(at("object", i) + ": transform not finite");
       }
     o.sphere.center = getVec(r, "sphere centre");
     o.sphere.radius = r.f64("sphere radius");
@@ -181,8 +184,8 @@ std::vector<uint32_t> decodeOccluders(const std::vector<uint8_t>& file, const st
   std::vector<uint32_t> out;
   r.array(&out, r.u32("occluder count"), "occluder indices");
   for (size_t i = 1; i < out.size(); ++i)
-    if (out[i] <= out[i - 1]) r.fail("occluder indices are not strictly increasing at entry " +
-                                     std::to_string(i));
+    if (out[i] <= out[i - 1])
+      r.fail("occluder indices are not strictly increasing at entry " + std::to_string(i));
   r.finish();
   return out;
 }
@@ -264,8 +267,9 @@ GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string&
     r.array(&g.indices, ni, "indices");
   }
   for (uint32_t idx : g.indices)
-    if (idx >= nv) r.fail("index " + std::to_string(idx) + " out of range (" +
-                          std::to_string(nv) + " vertices)");
+    if (idx >= nv)
+      r.fail("index " + std::to_string(idx) + " out of range (" + std::to_string(nv) +
+             " vertices)");
   r.finish();
   return g;
 }
@@ -305,7 +309,9 @@ TextureData decodeTexture(const std::vector<uint8_t>& file, const std::string& p
 namespace {
 using nlohmann::json;
 
-json vecJson(Vec3d v) { return json::array({v.x, v.y, v.z}); }
+json vecJson(Vec3d v) {
+  return json::array({v.x, v.y, v.z});
+}
 
 struct JsonReader {
   const std::string& path;
@@ -318,7 +324,8 @@ struct JsonReader {
   }
   uint64_t u64(const json& obj, const char* key) const {
     const json& v = field(obj, key);
-    if (!v.is_number_unsigned()) fail(std::string("field '") + key + "' must be an unsigned integer");
+    if (!v.is_number_unsigned())
+      fail(std::string("field '") + key + "' must be an unsigned integer");
     return v.get<uint64_t>();
   }
   std::string str(const json& obj, const char* key) const {
@@ -343,9 +350,12 @@ std::string encodeManifest(const Manifest& m) {
   json j;
   j["format"] = "dmmr-scene";
   j["version"] = m.version;
-  j["counts"] = {{"objects", m.objects},     {"geometries", m.geometries},
-                 {"textures", m.textures},   {"occluders", m.occluders},
-                 {"triangles", m.triangles}, {"unique_triangles", m.unique_triangles},
+  j["counts"] = {{"objects", m.objects},
+                 {"geometries", m.geometries},
+                 {"textures", m.textures},
+                 {"occluders", m.occluders},
+                 {"triangles", m.triangles},
+                 {"unique_triangles", m.unique_triangles},
                  {"geometry_bytes", m.geometry_bytes}};
   j["bounds"] = {{"min", m.bounds.valid() ? vecJson(m.bounds.lo) : vecJson({0, 0, 0})},
                  {"max", m.bounds.valid() ? vecJson(m.bounds.hi) : vecJson({0, 0, 0})}};

@@ -10,7 +10,9 @@ Backend parseBackend(const std::string& name) {
   throw Error("unknown backend '" + name + "' (expected osmesa or egl)");
 }
 
-const char* backendName(Backend b) { return b == Backend::OSMesa ? "osmesa" : "egl"; }
+const char* backendName(Backend b) {
+  return b == Backend::OSMesa ? "osmesa" : "egl";
+}
 
 void GlContext::loadApi() {
   gl_.load([this](const char* n) { return getProcAddress(n); });

@@ -81,8 +81,7 @@ class EglContextImpl : public GlContext {
                                  EGL_NONE};
     ctx_ = eglCreateContext(dpy_, config, EGL_NO_CONTEXT, ctxAttribs);
     if (ctx_ == EGL_NO_CONTEXT)
-      throw Error("egl: cannot create an OpenGL 4.5 core context: " +
-                  eglErrorName(eglGetError()));
+      throw Error("egl: cannot create an OpenGL 4.5 core context: " + eglErrorName(eglGetError()));
     makeCurrent();
     loadApi();
   }
@@ -96,8 +95,7 @@ class EglContextImpl : public GlContext {
   }
   void makeCurrent() override {
     // The bound API is per-thread EGL state, so bind it on every thread.
-    if (!eglBindAPI(EGL_OPENGL_API) ||
-        !eglMakeCurrent(dpy_, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx_))
+    if (!eglBindAPI(EGL_OPENGL_API) || !eglMakeCurrent(dpy_, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx_))
       throw Error("egl: cannot make the context current: " + eglErrorName(eglGetError()));
   }
   void releaseCurrent() override {
@@ -107,8 +105,8 @@ class EglContextImpl : public GlContext {
     return reinterpret_cast<void*>(eglGetProcAddress(name));
   }
   std::string description() const override {
-    return std::string("egl: ") + reinterpret_cast<const char*>(gl_.GetString(GL_RENDERER)) +
-           ", " + reinterpret_cast<const char*>(gl_.GetString(GL_VERSION));
+    return std::string("egl: ") + reinterpret_cast<const char*>(gl_.GetString(GL_RENDERER)) + ", " +
+           reinterpret_cast<const char*>(gl_.GetString(GL_VERSION));
   }
 
  private:

@@ -51,6 +51,8 @@ class OSMesaContextImpl : public GlContext {
 
 }  // namespace
 
-std::unique_ptr<GlContext> createOSMesaContext() { return std::make_unique<OSMesaContextImpl>(); }
+std::unique_ptr<GlContext> createOSMesaContext() {
+  return std::make_unique<OSMesaContextImpl>();
+}
 
 }  // namespace dmmr

@@ -25,12 +25,18 @@ struct Vec3d {
   friend Vec3d operator/(Vec3d a, double s) { return {a.x / s, a.y / s, a.z / s}; }
   friend bool operator==(const Vec3d&, const Vec3d&) = default;
 };
-inline double dot(Vec3d a, Vec3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline double dot(Vec3d a, Vec3d b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 inline Vec3d cross(Vec3d a, Vec3d b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline double length(Vec3d a) { return std::sqrt(dot(a, a)); }
-inline Vec3d normalize(Vec3d a) { return a / length(a); }
+inline double length(Vec3d a) {
+  return std::sqrt(dot(a, a));
+}
+inline Vec3d normalize(Vec3d a) {
+  return a / length(a);
+}
 inline Vec3d vmin(Vec3d a, Vec3d b) {
   return {std::fmin(a.x, b.x), std::fmin(a.y, b.y), std::fmin(a.z, b.z)};
 }

@@ -24,12 +24,18 @@ void check(int rc, const char* call) {
 
 const char* tagName(Tag t) {
   switch (t) {
-    case Tag::Hello: return "Hello";
-    case Tag::Job: return "Job";
-    case Tag::SubFrame: return "SubFrame";
-    case Tag::Error: return "Error";
-    case Tag::Shutdown: return "Shutdown";
-    case Tag::Bye: return "Bye";
+    case Tag::Hello:
+      return "Hello";
+    case Tag::Job:
+      return "Job";
+    case Tag::SubFrame:
+      return "SubFrame";
+    case Tag::Error:
+      return "Error";
+    case Tag::Shutdown:
+      return "Shutdown";
+    case Tag::Bye:
+      return "Bye";
   }
   return "Unknown";
 }
@@ -46,7 +52,9 @@ Comm::Comm(int* argc, char*** argv) {
   }
 }
 
-Comm::~Comm() { MPI_Finalize(); }
+Comm::~Comm() {
+  MPI_Finalize();
+}
 
 void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
   if (bytes.size() > size_t(INT_MAX)) throw Error(std::string(tagName(tag)) + " message too large");

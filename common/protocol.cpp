@@ -92,7 +92,11 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
   return s;
 }
 
-std::vector<uint8_t> encodeText(const std::string& s) { return {s.begin(), s.end()}; }
-std::string decodeText(const std::vector<uint8_t>& bytes) { return {bytes.begin(), bytes.end()}; }
+std::vector<uint8_t> encodeText(const std::string& s) {
+  return {s.begin(), s.end()};
+}
+std::string decodeText(const std::vector<uint8_t>& bytes) {
+  return {bytes.begin(), bytes.end()};
+}
 
 }  // namespace dmmr

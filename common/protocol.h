@@ -31,8 +31,8 @@ struct ClientStats {
   double render_ms = 0;    // drawing the visible list (through glFinish)
   double readback_ms = 0;  // reading the region's pixels
   double compress_ms = 0;
-  double send_ms = 0;      // MPI send of this client's previous sub-frame
-  uint64_t objects = 0;    // objects in the region's list from the server
+  double send_ms = 0;    // MPI send of this client's previous sub-frame
+  uint64_t objects = 0;  // objects in the region's list from the server
   uint64_t occluders = 0, queried = 0, visible = 0;
   uint64_t triangles = 0;  // triangles drawn by the render stage
   uint64_t bytes_raw = 0, bytes_sent = 0;

@@ -40,16 +40,16 @@ void validateReferences(const Scene& s) {
   if (s.occluders.size() != s.manifest.occluders)
     throw Error(fileError(o, "count differs from the manifest's"));
   if (!s.occluders.empty() && s.occluders.back() >= s.objects.size())
-    throw Error(fileError(o, "names object " + std::to_string(s.occluders.back()) +
-                                 " beyond the object count"));
+    throw Error(fileError(
+        o, "names object " + std::to_string(s.occluders.back()) + " beyond the object count"));
   if (s.skeleton.empty()) return;  // not loaded
   const std::string k = s.dir + "/skeleton.bin";
   std::vector<uint8_t> seen(s.objects.size(), 0);
   for (const auto& n : s.skeleton) {
     if (n.kind != NodeKind::Object) continue;
     if (n.object >= s.objects.size() || seen[n.object]++)
-      throw Error(fileError(k, "object node " + std::to_string(n.object) +
-                                   " is out of range or repeated"));
+      throw Error(
+          fileError(k, "object node " + std::to_string(n.object) + " is out of range or repeated"));
   }
   for (size_t i = 0; i < seen.size(); ++i)
     if (!seen[i]) throw Error(fileError(k, "object " + std::to_string(i) + " has no node"));
@@ -77,9 +77,9 @@ GeometryData loadGeometry(const Scene& scene, uint32_t index) {
   GeometryData g = decodeGeometry(readChecked(scene, name), scene.dir + "/" + name);
   for (const SubMesh& sm : g.submeshes)
     if (sm.texture >= 0 && uint64_t(sm.texture) >= scene.manifest.textures)
-      throw Error(fileError(scene.dir + "/" + name,
-                            "names texture " + std::to_string(sm.texture) + " of " +
-                                std::to_string(scene.manifest.textures)));
+      throw Error(fileError(scene.dir + "/" + name, "names texture " + std::to_string(sm.texture) +
+                                                        " of " +
+                                                        std::to_string(scene.manifest.textures)));
   return g;
 }
 

@@ -1,8 +1,8 @@
 #include "walkthrough.h"
 
 #include <charconv>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -38,20 +38,23 @@ Walkthrough parseWalkthrough(const std::string& text, const std::string& path) {
     int n = 0;
     while (fields >> f) {
       if (n == 8)
-        throw Error(fileError(path, lineno, "expected 8 fields (time x y z qx qy qz qw), got more"));
+        throw Error(
+            fileError(path, lineno, "expected 8 fields (time x y z qx qy qz qw), got more"));
       if (!parseDouble(f, &v[n]))
-        throw Error(fileError(path, lineno, "field " + std::to_string(n + 1) + " ('" + f +
-                                                "') is not a finite number"));
+        throw Error(
+            fileError(path, lineno,
+                      "field " + std::to_string(n + 1) + " ('" + f + "') is not a finite number"));
       ++n;
     }
     if (n != 8)
-      throw Error(fileError(path, lineno, "expected 8 fields (time x y z qx qy qz qw), got " +
-                                              std::to_string(n)));
+      throw Error(fileError(
+          path, lineno, "expected 8 fields (time x y z qx qy qz qw), got " + std::to_string(n)));
     ControlPoint cp{v[0], {v[1], v[2], v[3]}, {v[4], v[5], v[6], v[7]}};
     double norm = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
     if (std::fabs(norm - 1.0) > 1e-3)
-      throw Error(fileError(path, lineno, "rotation quaternion is not unit length (|q| = " +
-                                              std::to_string(norm) + ")"));
+      throw Error(
+          fileError(path, lineno,
+                    "rotation quaternion is not unit length (|q| = " + std::to_string(norm) + ")"));
     cp.rotation = {v[4] / norm, v[5] / norm, v[6] / norm, v[7] / norm};
     if (!w.points.empty() && cp.time < w.points.back().time)
       throw Error(fileError(path, lineno, "time goes backwards"));

@@ -24,17 +24,21 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: dropped %llu vertices with NaN or infinite "
                    "coordinates and the %llu triangles using them\n",
-                   (unsigned long long)s.nonfinite_vertices, (unsigned long long)s.dropped_triangles);
+                   (unsigned long long)s.nonfinite_vertices,
+                   (unsigned long long)s.dropped_triangles);
     if (s.skipped_drawables)
-      std::fprintf(stderr, "dmmr-preprocess: warning: skipped %llu drawables without triangle "
-                   "geometry\n", (unsigned long long)s.skipped_drawables);
-    std::printf("%s: %llu objects, %llu geometries, %llu textures, %llu occluders, %llu triangles "
-                "(%llu unique), %.1f MB, %.2f s (%.2f M triangles/s)\n",
-                o.out.c_str(), (unsigned long long)s.objects, (unsigned long long)s.geometries,
-                (unsigned long long)s.textures, (unsigned long long)s.occluders,
-                (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
-                double(s.bytes_written) / 1e6, s.seconds,
-                s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: skipped %llu drawables without triangle "
+                   "geometry\n",
+                   (unsigned long long)s.skipped_drawables);
+    std::printf(
+        "%s: %llu objects, %llu geometries, %llu textures, %llu occluders, %llu triangles "
+        "(%llu unique), %.1f MB, %.2f s (%.2f M triangles/s)\n",
+        o.out.c_str(), (unsigned long long)s.objects, (unsigned long long)s.geometries,
+        (unsigned long long)s.textures, (unsigned long long)s.occluders,
+        (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
+        double(s.bytes_written) / 1e6, s.seconds,
+        s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dmmr-preprocess: %s\n", e.what());
     return 1;

@@ -104,11 +104,20 @@ bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData*
     return false;
   int comps = 0;
   switch (img.getPixelFormat()) {
-    case GL_LUMINANCE: comps = 1; break;
-    case GL_LUMINANCE_ALPHA: comps = 2; break;
-    case GL_RGB: comps = 3; break;
-    case GL_RGBA: comps = 4; break;
-    default: return false;
+    case GL_LUMINANCE:
+      comps = 1;
+      break;
+    case GL_LUMINANCE_ALPHA:
+      comps = 2;
+      break;
+    case GL_RGB:
+      comps = 3;
+      break;
+    case GL_RGBA:
+      comps = 4;
+      break;
+    default:
+      return false;
   }
   out->width = uint32_t(img.s());
   out->height = uint32_t(img.t());
@@ -193,15 +202,19 @@ void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedS
     std::vector<const osg::Geometry*> drawables;
     for (unsigned i = 0; i < geode->getNumDrawables(); ++i) {
       const osg::Geometry* g = geode->getDrawable(i)->asGeometry();
-      if (g) drawables.push_back(g);
-      else ++stats_.skipped_drawables;
+      if (g)
+        drawables.push_back(g);
+      else
+        ++stats_.skipped_drawables;
     }
     addObject(node, drawables, world, state, parent);
     return;
   }
   if (auto* drawable = node->asDrawable()) {  // OSG 3.6 lets drawables sit in groups
-    if (auto* g = drawable->asGeometry()) addObject(node, {g}, world, state, parent);
-    else ++stats_.skipped_drawables;
+    if (auto* g = drawable->asGeometry())
+      addObject(node, {g}, world, state, parent);
+    else
+      ++stats_.skipped_drawables;
     return;
   }
   const osg::Group* group = node->asGroup();
@@ -235,8 +248,8 @@ void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedS
 }
 
 void SceneWriter::addObject(const osg::Node* node,
-                            const std::vector<const osg::Geometry*>& drawables,
-                            const Mat4d& world, const InheritedState& state, uint32_t parent) {
+                            const std::vector<const osg::Geometry*>& drawables, const Mat4d& world,
+                            const InheritedState& state, uint32_t parent) {
   uint32_t gi = geometryFor(node, drawables, state);
   if (gi == kNone) return;  // nothing drawable (no triangles)
   const GeometryInfo& info = geometries_[gi];
@@ -332,7 +345,8 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   }
   // Compact to the referenced, finite vertices; renumber indices.
   std::vector<uint32_t> remap(nv, kNone);
-  const osg::Array* normals = perVertex(geom.getNormalArray(), nv) ? geom.getNormalArray() : nullptr;
+  const osg::Array* normals =
+      perVertex(geom.getNormalArray(), nv) ? geom.getNormalArray() : nullptr;
   const osg::Array* colors = perVertex(geom.getColorArray(), nv) ? geom.getColorArray() : nullptr;
   auto* uv = dynamic_cast<const osg::Vec2Array*>(geom.getTexCoordArray(0));
   if (!state.texture || !perVertex(uv, nv)) uv = nullptr;
@@ -372,7 +386,8 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   sm.index_count = uint32_t(g->indices.size()) - firstIndex;
   if (sm.index_count == 0) return;
   osg::Vec4 diffuse(0.8f, 0.8f, 0.8f, 1.f);
-  if (state.material) diffuse = state.material->getDiffuse(osg::Material::FRONT);
+  if (state.material)
+    diffuse = state.material->getDiffuse(osg::Material::FRONT);
   else if (geom.getColorArray() && geom.getColorArray()->getBinding() == osg::Array::BIND_OVERALL) {
     uint8_t c[4];
     if (readColor(geom.getColorArray(), 0, c))
@@ -393,8 +408,10 @@ int32_t SceneWriter::textureFor(const osg::Texture2D* tex) {
     index = int32_t(manifest_.textures++);
     writeFile(textureFileName(uint32_t(index)), encodeTexture(t));
   } else {
-    std::fprintf(stderr, "dmmr-preprocess: warning: texture %s has an unsupported pixel format; "
-                 "left off\n", img->getFileName().c_str());
+    std::fprintf(stderr,
+                 "dmmr-preprocess: warning: texture %s has an unsupported pixel format; "
+                 "left off\n",
+                 img->getFileName().c_str());
   }
   texture_index_[img] = index;
   return index;
@@ -456,8 +473,10 @@ osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (!fs::exists(path)) throw Error(fileError(path, "no such file"));
   if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
   osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
-  if (!node) throw Error(fileError(path, "OpenSceneGraph cannot read this model (unknown format "
-                                         "or corrupt file)"));
+  if (!node)
+    throw Error(fileError(path,
+                          "OpenSceneGraph cannot read this model (unknown format "
+                          "or corrupt file)"));
   return node;
 }
 
@@ -474,8 +493,8 @@ std::vector<uint32_t> selectOccluders(const std::vector<ObjectBounds>& objects,
   areas.reserve(objects.size());
   for (const auto& o : objects) areas.push_back(faceArea(o));
   std::vector<double> sorted = areas;
-  size_t k = std::min(sorted.size() - 1,
-                      size_t(std::clamp(area_percentile, 0.0, 100.0) / 100.0 * double(sorted.size())));
+  size_t k = std::min(sorted.size() - 1, size_t(std::clamp(area_percentile, 0.0, 100.0) / 100.0 *
+                                                double(sorted.size())));
   std::nth_element(sorted.begin(), sorted.begin() + long(k), sorted.end());
   double threshold = sorted[k];
   std::vector<uint32_t> out;

@@ -229,14 +229,16 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
   const int nl = clients / 2, nr = clients - nl;
   if (size < 2) {  // a single pixel (or an empty rectangle): the rest get nothing
     divide(items, rect, vertical, 1, out);
-    for (int i = 1; i < clients; ++i) out->push_back(Region{Rect{rect.x1(), rect.y1(), 0, 0}, {}, 0});
+    for (int i = 1; i < clients; ++i)
+      out->push_back(Region{Rect{rect.x1(), rect.y1(), 0, 0}, {}, 0});
     return;
   }
   // Leave each side at least as many pixels as it has clients, when possible.
   int minLeft = across > 0 ? (nl + across - 1) / across : 1;
   int minRight = across > 0 ? (nr + across - 1) / across : 1;
   int first = origin + std::max(1, minLeft), last = origin + size - std::max(1, minRight);
-  if (first > last) first = last = origin + std::clamp(int(double(size) * nl / clients), 1, size - 1);
+  if (first > last)
+    first = last = origin + std::clamp(int(double(size) * nl / clients), 1, size - 1);
   Split s = bestSplit(items, vertical, origin, size, first, last, nl, nr);
 
   // Branch-free partition: random footprints make the branches unpredictable.

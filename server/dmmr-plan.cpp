@@ -19,7 +19,8 @@ int main(int argc, char** argv) {
   CLI::App app{"dmmr-plan: time the server's culling and division over a walkthrough"};
   app.add_option("--scene", sceneDir, "preprocessed scene directory")->required();
   app.add_option("--walkthrough", pathFile, "AnimationPath file")->required();
-  app.add_option("--clients", clientCounts, "client counts to plan for")->check(CLI::Range(1, 4096));
+  app.add_option("--clients", clientCounts, "client counts to plan for")
+      ->check(CLI::Range(1, 4096));
   app.add_option("--width", v.width, "image width")->check(CLI::Range(1, 16384));
   app.add_option("--height", v.height, "image height")->check(CLI::Range(1, 16384));
   app.add_option("--fovy", v.fovy_deg, "vertical field of view, degrees");
@@ -62,8 +63,10 @@ int main(int argc, char** argv) {
                       sumW / clients);
         csv += row;
       }
-    if (csvFile.empty()) std::fputs(csv.c_str(), stdout);
-    else dmmr::writeFileAtomic(csvFile, csv);
+    if (csvFile.empty())
+      std::fputs(csv.c_str(), stdout);
+    else
+      dmmr::writeFileAtomic(csvFile, csv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dmmr-plan: %s\n", e.what());
     return 1;

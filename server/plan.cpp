@@ -17,8 +17,8 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
   // Projection is independent per object: large frames use the server's
   // cores, each thread filling its own slice, concatenated in order.
   constexpr size_t kPerThread = 16384;
-  size_t threads = std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), 8,
-                                     visible.size() / kPerThread + 1});
+  size_t threads = std::min<size_t>(
+      {std::max(1u, std::thread::hardware_concurrency()), 8, visible.size() / kPerThread + 1});
   std::vector<std::vector<Footprint>> parts(threads);
   auto work = [&](size_t t) {
     size_t begin = visible.size() * t / threads, end = visible.size() * (t + 1) / threads;

@@ -41,12 +41,13 @@ class Assembler {
  public:
   Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames)
       : comm_(comm), opts_(opts), clients_(clients), frames_(frames) {
-    csv_ = "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
-           "objects_in_frustum,triangles_in_frustum";
+    csv_ =
+        "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
+        "objects_in_frustum,triangles_in_frustum";
     for (int k = 1; k <= clients; ++k)
-      for (const char* c : {"objects", "occluders", "queried", "visible", "triangles",
-                            "prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms",
-                            "readback_ms", "compress_ms", "send_ms", "bytes_raw", "bytes_sent"})
+      for (const char* c : {"objects", "occluders", "queried", "visible", "triangles", "prepare_ms",
+                            "retrieve_ms", "pass_ms", "load_ms", "render_ms", "readback_ms",
+                            "compress_ms", "send_ms", "bytes_raw", "bytes_sent"})
         csv_ += ",c" + std::to_string(k) + "_" + c;
     csv_ += "\n";
     last_done_ = Clock::now();
@@ -144,13 +145,12 @@ class Assembler {
     for (const ClientStats& c : rec.clients)
       row << "," << c.objects << "," << c.occluders << "," << c.queried << "," << c.visible << ","
           << c.triangles << "," << c.prepare_ms << "," << c.retrieve_ms << "," << c.pass_ms << ","
-          << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms
-          << "," << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent;
+          << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms << ","
+          << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent;
     csv_ += row.str() + "\n";
     if (!opts_.stats.empty()) writeFileAtomic(opts_.stats, csv_);  // flushed frame by frame
     last_done_ = done;
-    if (opts_.progress)
-      std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
+    if (opts_.progress) std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
     std::lock_guard<std::mutex> lock(mu_);
     pending_.erase(frame);
     assemble_ms_.erase(frame);
@@ -192,8 +192,9 @@ void shutdownClients(Comm& comm, int clients) {
 int runServer(Comm& comm, const ServerOptions& opts) {
   const int clients = comm.size() - 1;
   if (clients < 1) {
-    std::fprintf(stderr, "dmmr-render: needs at least one client: run it under mpirun with "
-                         "-np 2 or more (rank 0 is the server)\n");
+    std::fprintf(stderr,
+                 "dmmr-render: needs at least one client: run it under mpirun with "
+                 "-np 2 or more (rank 0 is the server)\n");
     return 1;
   }
   Scene scene;
@@ -246,7 +247,11 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     assembler.begin(f, std::move(rec));
     try {
       for (int k = 0; k < clients; ++k) {
-        FrameJob job{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
+        FrameJob job{f,
+                     cam,
+                     v.width,
+                     v.height,
+                     plan.regions[size_t(k)].rect,
                      std::move(plan.regions[size_t(k)].objects)};
         comm.send(k + 1, Tag::Job, encodeJob(job));
       }

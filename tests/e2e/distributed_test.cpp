@@ -12,8 +12,8 @@
 
 #include "compare.h"
 #include "preprocess.h"
-#include "walkthrough.h"
 #include "test_support.h"
+#include "walkthrough.h"
 
 namespace fs = std::filesystem;
 using namespace dmmr;
@@ -32,9 +32,10 @@ struct SmallScene {
     shared->addDrawable(new osg::ShapeDrawable(new osg::Cylinder({0, 0, 0}, 0.3f, 1.5f)));
     for (int i = 0; i < 40; ++i) {
       auto* g = new osg::Geode;
-      osg::Shape* s = (i % 3 == 0)   ? static_cast<osg::Shape*>(new osg::Box({0, 0, 0}, 0.9f))
-                      : (i % 3 == 1) ? static_cast<osg::Shape*>(new osg::Sphere({0, 0, 0}, 0.5f))
-                                     : static_cast<osg::Shape*>(new osg::Cone({0, 0, 0}, 0.4f, 1.f));
+      osg::Shape* s = (i % 3 == 0) ? static_cast<osg::Shape*>(new osg::Box({0, 0, 0}, 0.9f))
+                      : (i % 3 == 1)
+                          ? static_cast<osg::Shape*>(new osg::Sphere({0, 0, 0}, 0.5f))
+                          : static_cast<osg::Shape*>(new osg::Cone({0, 0, 0}, 0.4f, 1.f));
       auto* sd = new osg::ShapeDrawable(s);
       sd->setColor(osg::Vec4(0.3f + 0.017f * i, 0.9f - 0.02f * i, 0.4f + 0.01f * (i % 7), 1.f));
       g->addDrawable(sd);
@@ -70,8 +71,10 @@ struct SmallScene {
             " --no-progress --width 160 --height 120 --scene " + scene + " --walkthrough " + path +
             " --out " + out + " " + extra,
         &s);
-    if (status) *status = s;
-    else EXPECT_EQ(s, 0) << log;
+    if (status)
+      *status = s;
+    else
+      EXPECT_EQ(s, 0) << log;
     return log;
   }
 };
@@ -120,7 +123,8 @@ TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
 TEST(DistributedErrors, ClientWithoutAContextStopsTheRunWithItsMessage) {
   SmallScene& s = smallScene();
   int status = 0;
-  std::string log = s.render(2, s.dir / "nodevice", "--backend egl --render-egl-device 99", &status);
+  std::string log =
+      s.render(2, s.dir / "nodevice", "--backend egl --render-egl-device 99", &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank hung";
   EXPECT_NE(log.find("client 1 (rank 1): egl: device 99"), std::string::npos) << log;
@@ -136,16 +140,16 @@ TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
     f.put('\x55');
   }
   int status = 0;
-  std::string log = test::runCapture(
-      "timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
-          " --no-progress --width 64 --height 48 --scene " + bad + " --walkthrough " + s.path +
-          " --out " + (s.dir / "bad"),
-      &status);
+  std::string log =
+      test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+                           " --no-progress --width 64 --height 48 --scene " + bad +
+                           " --walkthrough " + s.path + " --out " + (s.dir / "bad"),
+                       &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank hung";
   size_t first = log.find("skeleton.bin");
   ASSERT_NE(first, std::string::npos) << log;
   EXPECT_EQ(log.find("skeleton.bin", first + 1), std::string::npos) << "reported more than once:\n"
-                                                                      << log;
+                                                                    << log;
   EXPECT_NE(log.find("server (rank 0)"), std::string::npos) << log;
 }

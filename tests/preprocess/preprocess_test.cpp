@@ -29,8 +29,8 @@ namespace {
 osg::ref_ptr<osg::Geode> cube(osg::Vec3 c = {0, 0, 0}, bool normals = false) {
   auto* v = new osg::Vec3Array;
   for (int i = 0; i < 8; ++i)
-    v->push_back(c + osg::Vec3((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f,
-                               (i & 4) ? 0.5f : -0.5f));
+    v->push_back(c +
+                 osg::Vec3((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f, (i & 4) ? 0.5f : -0.5f));
   const GLuint idx[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
                           2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
   auto* geom = new osg::Geometry;
@@ -74,11 +74,18 @@ uint64_t osgTriangleCount(osg::Node* node) {
     switch (mode) {
       case GL_TRIANGLES:
       case GL_TRIANGLE_STRIP:
-      case GL_TRIANGLE_FAN: tris += count; break;
+      case GL_TRIANGLE_FAN:
+        tris += count;
+        break;
       case GL_QUADS:
-      case GL_QUAD_STRIP: tris += 2 * uint64_t(count); break;
-      case GL_POLYGON: ADD_FAILURE() << "GL_POLYGON counts are not triangles in osgUtil"; break;
-      default: break;
+      case GL_QUAD_STRIP:
+        tris += 2 * uint64_t(count);
+        break;
+      case GL_POLYGON:
+        ADD_FAILURE() << "GL_POLYGON counts are not triangles in osgUtil";
+        break;
+      default:
+        break;
     }
   }
   return tris;
@@ -94,8 +101,8 @@ void expectNear(Vec3d a, Vec3d b, double eps = 1e-9) {
 
 TEST(Preprocess, BoundsAndWeightsOfATranslatedScaledCube) {
   TempDir dir;
-  osg::ref_ptr<osg::MatrixTransform> t = new osg::MatrixTransform(
-      osg::Matrixd::scale(2, 2, 2) * osg::Matrixd::translate(10, 0, 0));
+  osg::ref_ptr<osg::MatrixTransform> t =
+      new osg::MatrixTransform(osg::Matrixd::scale(2, 2, 2) * osg::Matrixd::translate(10, 0, 0));
   t->addChild(cube());
   run({writeModel(dir, t.get(), "cube.osgb")}, dir / "scene");
   Scene s = loadScene(dir / "scene");
@@ -106,7 +113,7 @@ TEST(Preprocess, BoundsAndWeightsOfATranslatedScaledCube) {
   expectNear(o.box.hi, {11, 1, 1});
   expectNear(o.sphere.center, {10, 0, 0});
   EXPECT_NEAR(o.sphere.radius, std::sqrt(3.0), 1e-6);  // half diagonal of a 2-unit cube
-  EXPECT_TRUE(o.use_box);                               // 8 < 4/3 pi 3^1.5
+  EXPECT_TRUE(o.use_box);                              // 8 < 4/3 pi 3^1.5
   EXPECT_EQ(s.manifest.triangles, 12u);
   expectNear(s.manifest.bounds.lo, {9, -1, -1});
 }
@@ -301,10 +308,9 @@ TEST(Preprocess, EmptyModelIsAnErrorAndLeavesNoHalfScene) {
 TEST(Preprocess, CommandLineReportsErrorsWithNonZeroExit) {
   TempDir dir;
   int status = 0;
-  std::string out =
-      test::runCapture(test::tool("dmmr-preprocess") + " " + (dir / "missing.obj") + " -o " +
-                           (dir / "scene"),
-                       &status);
+  std::string out = test::runCapture(
+      test::tool("dmmr-preprocess") + " " + (dir / "missing.obj") + " -o " + (dir / "scene"),
+      &status);
   EXPECT_EQ(status, 1);
   EXPECT_NE(out.find("missing.obj: no such file"), std::string::npos) << out;
 }

@@ -27,7 +27,9 @@ std::string sharedModelsDir() {
   return std::filesystem::is_directory(dir) ? dir : "";
 }
 
-std::string tool(const std::string& name) { return std::string(DMMR_BIN_DIR) + "/" + name; }
+std::string tool(const std::string& name) {
+  return std::string(DMMR_BIN_DIR) + "/" + name;
+}
 
 std::string mpirun(int np) {
   std::string cmd = "mpirun --oversubscribe -np " + std::to_string(np);
