@@ -153,3 +153,29 @@ TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
                                                                     << log;
   EXPECT_NE(log.find("server (rank 0)"), std::string::npos) << log;
 }
+
+TEST(DistributedErrors, StageFailingMidRunEndsEveryRankWithItsMessage) {
+  SmallScene& s = smallScene();
+  std::string bad = s.dir / "badgeometry";
+  fs::copy(s.scene, bad, fs::copy_options::recursive);
+  // Geometry files that no longer match the manifest's checksums: the
+  // clients find out only when a stage first needs one, mid-run.
+  for (auto& e : fs::directory_iterator(bad + "/geometry")) {
+    std::fstream f(e.path(), std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(30);
+    char c = char(f.get() ^ 0x5a);  // flip bits: a changed byte whatever it held
+    f.seekp(30);
+    f.put(c);
+  }
+  int status = 0;
+  std::string log =
+      test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+                           " --no-progress --width 64 --height 48 --scene " + bad +
+                           " --walkthrough " + s.path + " --out " + (s.dir / "badgeo"),
+                       &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank or thread hung";
+  EXPECT_NE(log.find("checksum differs from the manifest"), std::string::npos) << log;
+  EXPECT_NE(log.find("stage: "), std::string::npos) << log;
+  EXPECT_NE(log.find("/geometry/"), std::string::npos) << log;
+}
