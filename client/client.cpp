@@ -67,9 +67,13 @@ class VisibilityStage {
         planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
-    for (uint32_t o : plan.occluders)
-      r.draw(gl_.meshes.acquire(scene_.objects[o].geometry), scene_.objects[o].transform,
-             gl_.meshes.textures());
+    for (uint32_t o : plan.occluders) {
+      const GpuMesh& mesh = gl_.meshes.acquire(scene_.objects[o].geometry);
+      if (opts_.occluder_lod)
+        r.drawOccluderLod(mesh, scene_.objects[o].transform);
+      else
+        r.draw(mesh, scene_.objects[o].transform, gl_.meshes.textures());
+    }
     // Queries: every object not marked, occluders included (an occluder hidden
     // by other occluders need not be drawn; one that shows passes against its
     // own depth, since its widened box lies in front of it). Hierarchically:
@@ -78,7 +82,11 @@ class VisibilityStage {
     // box first, and only the runs that pass are split and tested again. A
     // union box encloses its members' boxes, so a run that fails hides them
     // all. Boxes that reach the near plane are never queried: they pass.
-    std::vector<uint32_t> candidates = mergeSorted({plan.occluders, plan.queried});
+    // Occluders still marked from an earlier pass are taken without a query,
+    // like every marked object: the paper's n frames.
+    std::vector<uint32_t> candidates, taken = plan.marked;
+    for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
+      (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
     std::vector<uint32_t> passed;
     std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
     GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
@@ -127,7 +135,7 @@ class VisibilityStage {
     out.stats.retrieve_ms = retrieve;
     for (uint32_t o : passed) marked_until_[o] = job.frame + 1 + opts_.keep_frames;
     std::sort(passed.begin(), passed.end());
-    out.visible = mergeSorted({plan.marked, passed});
+    out.visible = mergeSorted({taken, passed});
     previous_ = out.visible;
     out.stats.occluders = plan.occluders.size();
     out.stats.queried = issued;

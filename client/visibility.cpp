@@ -15,9 +15,12 @@ VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
     while (prev != previous.end() && *prev < o) ++prev;
     while (pot != potential.end() && *pot < o) ++pot;
     bool occluder = (prev != previous.end() && *prev == o) || (pot != potential.end() && *pot == o);
-    if (occluder) p.occluders.push_back(o);
-    else if (o < marked_until.size() && frame < marked_until[o]) p.marked.push_back(o);
-    else p.queried.push_back(o);
+    if (occluder)
+      p.occluders.push_back(o);
+    else if (o < marked_until.size() && frame < marked_until[o])
+      p.marked.push_back(o);
+    else
+      p.queried.push_back(o);
   }
   return p;
 }
@@ -35,8 +38,15 @@ bool boxReachesNearPlane(const Box3d& box, const Camera& camera) {
   double ty = std::tan(camera.fovy_deg * M_PI / 360.0), tx = ty * camera.aspect;
   double reach = camera.near * std::sqrt(1 + tx * tx + ty * ty) * 1.01;
   Vec3d e = camera.eye;
-  Vec3d nearest{std::clamp(e.x, box.lo.x, box.hi.x), std::clamp(e.y, box.lo.y, box.hi.y),
-                std::clamp(e.z, box.lo.z, box.hi.z)};
+  // Renderer::queryBox draws the box widened (half extents * 1.001 plus 1e-5
+  // of the distance to its centre and of its half diagonal): test that box,
+  // with twice the margin, since it is the one the near plane would clip.
+  Vec3d c = box.center() - e, h = box.extent() * 0.5;
+  double slack = 2e-5 * (length(c) + length(h)) + 1e-9;
+  Vec3d lo = box.center() - (h * 1.002 + Vec3d{slack, slack, slack});
+  Vec3d hi = box.center() + (h * 1.002 + Vec3d{slack, slack, slack});
+  Vec3d nearest{std::clamp(e.x, lo.x, hi.x), std::clamp(e.y, lo.y, hi.y),
+                std::clamp(e.z, lo.z, hi.z)};
   return length(nearest - e) <= reach;
 }
 

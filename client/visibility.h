@@ -30,6 +30,9 @@ struct VisibilityOptions {
   // Draw the preprocessor's potential occluders into depth every frame, or
   // only while there is no previous visible list (the first frame).
   bool potential_every_frame = false;
+  // Draw occluders with the preprocessor's level of detail: cheaper, but an
+  // approximation (a simplified occluder can hide what the full one shows).
+  bool occluder_lod = false;
 };
 
 // Which objects of a region the stage draws as occluders, which it takes as

@@ -205,10 +205,14 @@ GpuMesh Renderer::upload(const GeometryData& g) {
   attrib(1, g.normals.data(), g.normals.size() * 4, 3, GL_FLOAT, GL_FALSE);
   attrib(2, g.colors.data(), g.colors.size(), 4, GL_UNSIGNED_BYTE, GL_TRUE);
   attrib(3, g.texcoords.data(), g.texcoords.size() * 4, 2, GL_FLOAT, GL_FALSE);
+  // Full indices, then the occluder level of detail's, in one buffer.
+  std::vector<uint32_t> all = g.indices;
+  all.insert(all.end(), g.lod_indices.begin(), g.lod_indices.end());
+  m.lod_first = uint32_t(g.indices.size());
+  m.lod_count = uint32_t(g.lod_indices.size());
   gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, m.buffers[4]);
-  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(g.indices.size() * 4), g.indices.data(),
-                 GL_STATIC_DRAW);
-  m.bytes += g.indices.size() * 4;
+  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(all.size() * 4), all.data(), GL_STATIC_DRAW);
+  m.bytes += all.size() * 4;
   gl_.BindVertexArray(0);
   gl_.check("geometry upload");
   return m;
@@ -328,6 +332,20 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_
   for (const SubMesh& s : mesh.submeshes)
     gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
                      reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+  gl_.BindVertexArray(0);
+}
+
+void Renderer::drawOccluderLod(const GpuMesh& mesh, const Mat4d& object_to_world) {
+  if (mesh.lod_count == 0) {
+    draw(mesh, object_to_world, {});
+    return;
+  }
+  float mvf[16];
+  toFloat(cameraRelative(object_to_world), mvf);
+  gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
+  gl_.BindVertexArray(mesh.vao);
+  gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(uintptr_t(mesh.lod_first) * 4));
   gl_.BindVertexArray(0);
 }
 

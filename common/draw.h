@@ -25,6 +25,8 @@ struct GpuMesh {
   GLuint buffers[5] = {};  // positions, normals, colors, texcoords, indices
   bool has_normals = false;
   std::vector<SubMesh> submeshes;
+  // The occluder level of detail's range in the index buffer (count 0: none).
+  uint32_t lod_first = 0, lod_count = 0;
   uint64_t bytes = 0;  // GPU memory held (buffers only)
   uint64_t triangles = 0;
 };
@@ -71,6 +73,10 @@ class Renderer {
   // so that the id buffer says which object owns each pixel of the frame.
   void beginIdFrame(const Camera& camera, const Rect& region);
   void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id);
+
+  // Draws an object into depth with its occluder level of detail where it
+  // has one (an approximation), else in full. For beginDepthFrame passes.
+  void drawOccluderLod(const GpuMesh& mesh, const Mat4d& object_to_world);
 
   // Draws one object; `textures` maps texture file indices to GL names.
   void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);

@@ -14,7 +14,13 @@ constexpr FileKind kOccludersKind{"DMMROCCL", 1, "occluders"};
 constexpr FileKind kGeometryKind{"DMMRGEOM", 1, "geometry"};
 constexpr FileKind kTextureKind{"DMMRTEXR", 1, "texture"};
 
-enum GeometryFlags : uint8_t { kHasNormals = 1, kHasColors = 2, kHasTexcoords = 4, kIndex16 = 8 };
+enum GeometryFlags : uint8_t {
+  kHasNormals = 1,
+  kHasColors = 2,
+  kHasTexcoords = 4,
+  kIndex16 = 8,
+  kHasLod = 16
+};
 constexpr uint32_t kMaxTextureSide = 16384;
 
 void putVec(ByteWriter& w, Vec3d v) {
@@ -202,7 +208,8 @@ std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
   ByteWriter w;
   w.u8(uint8_t(Encoding::Float32));
   w.u8((g.normals.empty() ? 0 : kHasNormals) | (g.colors.empty() ? 0 : kHasColors) |
-       (g.texcoords.empty() ? 0 : kHasTexcoords) | (idx16 ? kIndex16 : 0));
+       (g.texcoords.empty() ? 0 : kHasTexcoords) | (idx16 ? kIndex16 : 0) |
+       (g.lod_indices.empty() ? 0 : kHasLod));
   w.u32(uint32_t(nv));
   w.u32(uint32_t(g.indices.size()));
   w.u32(uint32_t(g.submeshes.size()));
@@ -216,11 +223,18 @@ std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
   w.array(g.normals.data(), g.normals.size());
   w.array(g.colors.data(), g.colors.size());
   w.array(g.texcoords.data(), g.texcoords.size());
-  if (idx16) {
-    std::vector<uint16_t> small(g.indices.begin(), g.indices.end());
-    w.array(small.data(), small.size());
-  } else {
-    w.array(g.indices.data(), g.indices.size());
+  auto putIndices = [&](const std::vector<uint32_t>& idx) {
+    if (idx16) {
+      std::vector<uint16_t> small(idx.begin(), idx.end());
+      w.array(small.data(), small.size());
+    } else {
+      w.array(idx.data(), idx.size());
+    }
+  };
+  putIndices(g.indices);
+  if (!g.lod_indices.empty()) {
+    w.u32(uint32_t(g.lod_indices.size()));
+    putIndices(g.lod_indices);
   }
   return wrapContainer(kGeometryKind, w.bytes());
 }
@@ -230,7 +244,7 @@ GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string&
   uint8_t enc = r.u8("encoding");
   if (enc != uint8_t(Encoding::Float32)) r.fail("unknown geometry encoding " + std::to_string(enc));
   uint8_t flags = r.u8("flags");
-  if (flags & ~uint8_t(kHasNormals | kHasColors | kHasTexcoords | kIndex16))
+  if (flags & ~uint8_t(kHasNormals | kHasColors | kHasTexcoords | kIndex16 | kHasLod))
     r.fail("unknown geometry flags");
   uint32_t nv = r.u32("vertex count");
   uint32_t ni = r.u32("index count");
@@ -259,17 +273,26 @@ GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string&
   if (flags & kHasNormals) r.array(&g.normals, uint64_t(nv) * 3, "normals");
   if (flags & kHasColors) r.array(&g.colors, uint64_t(nv) * 4, "colors");
   if (flags & kHasTexcoords) r.array(&g.texcoords, uint64_t(nv) * 2, "texcoords");
-  if (flags & kIndex16) {
-    std::vector<uint16_t> small;
-    r.array(&small, ni, "indices");
-    g.indices.assign(small.begin(), small.end());
-  } else {
-    r.array(&g.indices, ni, "indices");
+  auto getIndices = [&](std::vector<uint32_t>* out, uint64_t n, const char* field) {
+    if (flags & kIndex16) {
+      std::vector<uint16_t> small;
+      r.array(&small, n, field);
+      out->assign(small.begin(), small.end());
+    } else {
+      r.array(out, n, field);
+    }
+    for (uint32_t idx : *out)
+      if (idx >= nv)
+        r.fail(std::string(field) + ": index " + std::to_string(idx) + " out of range (" +
+               std::to_string(nv) + " vertices)");
+  };
+  getIndices(&g.indices, ni, "indices");
+  if (flags & kHasLod) {
+    uint32_t nl = r.u32("lod index count");
+    if (nl == 0 || nl % 3)
+      r.fail("lod index count " + std::to_string(nl) + " is not a positive multiple of 3");
+    getIndices(&g.lod_indices, nl, "lod indices");
   }
-  for (uint32_t idx : g.indices)
-    if (idx >= nv)
-      r.fail("index " + std::to_string(idx) + " out of range (" + std::to_string(nv) +
-             " vertices)");
   r.finish();
   return g;
 }

@@ -66,6 +66,9 @@ struct GeometryData {
   std::vector<float> texcoords;
   std::vector<uint32_t> indices;
   std::vector<SubMesh> submeshes;
+  // Optional coarser triangle list over the same vertices (meshoptimizer's
+  // simplifier), for drawing the geometry as an occluder; empty when none.
+  std::vector<uint32_t> lod_indices;
   size_t vertexCount() const { return positions.size() / 3; }
   uint64_t triangleCount() const { return indices.size() / 3; }
   friend bool operator==(const GeometryData&, const GeometryData&) = default;

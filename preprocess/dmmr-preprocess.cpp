@@ -16,6 +16,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 100.0));
   app.add_option("--occluder-max-triangles", o.occluder_max_triangles,
                  "occluders: at most this many triangles");
+  app.add_option("--lod-ratio", o.lod_ratio,
+                 "occluder level of detail: target fraction of triangles (0: none)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--lod-error", o.lod_error, "occluder level of detail: relative error bound")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_flag("!--no-progress", o.progress, "do not print progress");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -39,6 +44,10 @@ int main(int argc, char** argv) {
         (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
         double(s.bytes_written) / 1e6, s.seconds,
         s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
+    if (s.lod_geometries)
+      std::printf("%s: occluder levels of detail for %llu geometries, %llu triangles\n",
+                  o.out.c_str(), (unsigned long long)s.lod_geometries,
+                  (unsigned long long)s.lod_triangles);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dmmr-preprocess: %s\n", e.what());
     return 1;

@@ -20,6 +20,8 @@
 #include <osgDB/ReadFile>
 #include <unordered_map>
 
+#include <meshoptimizer.h>
+
 #include "atomic_file.h"
 #include "error.h"
 
@@ -168,6 +170,7 @@ class SceneWriter {
   void appendDrawable(const osg::Geometry& geom, InheritedState state, GeometryData* g,
                       std::vector<double>* positions, const std::vector<bool>& attrs);
   int32_t textureFor(const osg::Texture2D* tex);
+  void addLevelOfDetail(GeometryData* g);
   void writeFile(const std::string& name, const std::vector<uint8_t>& bytes);
   void progress(bool force = false);
 
@@ -308,6 +311,7 @@ uint32_t SceneWriter::geometryFor(const osg::Node* key,
   }
   info.radius = std::sqrt(r2) * (1 + 1e-12);
   info.triangles = g.triangleCount();
+  addLevelOfDetail(&g);
   uint32_t index = uint32_t(geometries_.size());
   geometries_.push_back(info);
   geometry_index_[k] = index;
@@ -396,6 +400,19 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   for (int k = 0; k < 4; ++k) sm.diffuse[k] = diffuse[k];
   sm.texture = uv ? textureFor(state.texture) : -1;
   g->submeshes.push_back(sm);
+}
+
+void SceneWriter::addLevelOfDetail(GeometryData* g) {
+  if (opts_.lod_ratio <= 0 || g->triangleCount() < opts_.lod_min_triangles) return;
+  size_t target = std::max<size_t>(3, size_t(double(g->indices.size()) * opts_.lod_ratio) / 3 * 3);
+  std::vector<uint32_t> lod(g->indices.size());
+  size_t n = meshopt_simplify(lod.data(), g->indices.data(), g->indices.size(), g->positions.data(),
+                              g->vertexCount(), 3 * sizeof(float), target, float(opts_.lod_error));
+  if (n == 0 || n * 4 > g->indices.size() * 3) return;  // saves less than a quarter
+  lod.resize(n);
+  g->lod_indices = std::move(lod);
+  ++stats_.lod_geometries;
+  stats_.lod_triangles += n / 3;
 }
 
 int32_t SceneWriter::textureFor(const osg::Texture2D* tex) {

@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
                  "samples a query must pass (0: any; above 0 approximates)");
   app.add_option("--keep-frames", c.visibility.keep_frames,
                  "frames an object stays visible after passing a query");
+  app.add_flag("--occluder-lod", c.visibility.occluder_lod,
+               "draw occluders with their level of detail (faster, approximate)");
   app.add_flag("--potential-occluders-every-frame", c.visibility.potential_every_frame,
                "draw the preprocessor's occluders every frame, not only without a previous list");
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")

@@ -38,8 +38,9 @@ std::string makeScene(const TempDir& dir) {
     auto* sd = new osg::ShapeDrawable(shape);
     sd->setColor(osg::Vec4(0.2f + 0.06f * i, 0.8f - 0.05f * i, 0.5f, 1.f));
     geode->addDrawable(sd);
-    auto* t = new osg::MatrixTransform(osg::Matrixd::rotate(0.3 * i, osg::Vec3d(0, 0, 1)) *
-                                       osg::Matrixd::translate(-3 + 0.55 * i, 6 + (i % 3), 0.4 * (i % 4) - 0.6));
+    auto* t = new osg::MatrixTransform(
+        osg::Matrixd::rotate(0.3 * i, osg::Vec3d(0, 0, 1)) *
+        osg::Matrixd::translate(-3 + 0.55 * i, 6 + (i % 3), 0.4 * (i % 4) - 0.6));
     t->addChild(geode);
     root->addChild(t);
   }
@@ -108,14 +109,16 @@ TEST(Backends, ScissoredRegionsReproduceTheFullFrameExactly) {
   auto ctx = createContext({Backend::OSMesa, -1});
   const int w = 203, h = 157;  // odd sizes: regions of unequal, odd widths
   Image full = render(*ctx, scene, lookAlongY(0.3), w, h, {{0, 0, w, h}});
-  std::vector<Rect> quads = {{0, 0, 71, 60}, {71, 0, w - 71, 60}, {0, 60, 1, h - 60},
-                             {1, 60, w - 1, h - 60}};
+  std::vector<Rect> quads = {
+      {0, 0, 71, 60}, {71, 0, w - 71, 60}, {0, 60, 1, h - 60}, {1, 60, w - 1, h - 60}};
   Image pieces = render(*ctx, scene, lookAlongY(0.3), w, h, quads);
   ImageDiff d = compareImages(full, pieces);
   EXPECT_EQ(d.differing_pixels, 0) << d;
 }
 
-TEST(Backends, UnknownBackendNameIsAnError) { EXPECT_THROW(parseBackend("vulkan"), Error); }
+TEST(Backends, UnknownBackendNameIsAnError) {
+  EXPECT_THROW(parseBackend("vulkan"), Error);
+}
 
 TEST(Reference, RendersEveryFrameOfAWalkthrough) {
   TempDir dir;
@@ -140,7 +143,8 @@ TEST(Reference, RendersEveryFrameOfAWalkthrough) {
     EXPECT_EQ(img.height, 64);
   }
   // Frames move with the camera.
-  ImageDiff d01 = compareImageFiles(dir / "frames/frame_000000.png", dir / "frames/frame_000001.png");
+  ImageDiff d01 =
+      compareImageFiles(dir / "frames/frame_000000.png", dir / "frames/frame_000001.png");
   EXPECT_GT(d01.differing_pixels, 0);
   std::ifstream csv(dir / "stats.csv");
   std::string line;
@@ -154,10 +158,10 @@ TEST(Reference, MalformedWalkthroughLineIsReportedWithItsNumber) {
   std::string scene = makeScene(dir);
   std::ofstream(dir / "bad.path") << "0 0 0 0 0 0 0 1\n1 0 0 0 0 0 zero 1\n";
   int status = 0;
-  std::string out = test::runCapture(test::tool("dmmr-reference") + " --scene " + scene +
-                                         " --walkthrough " + (dir / "bad.path") + " --out " +
-                                         (dir / "frames") + " --no-progress",
-                                     &status);
+  std::string out =
+      test::runCapture(test::tool("dmmr-reference") + " --scene " + scene + " --walkthrough " +
+                           (dir / "bad.path") + " --out " + (dir / "frames") + " --no-progress",
+                       &status);
   EXPECT_EQ(status, 1);
   EXPECT_NE(out.find("bad.path:2:"), std::string::npos) << out;
 }
@@ -172,10 +176,10 @@ TEST(Reference, CorruptSceneIsRefusedNamingTheFile) {
   }
   int status = 0;
   std::ofstream(dir / "p.path") << "0 0 0 0 0 0 0 1\n";
-  std::string out = test::runCapture(test::tool("dmmr-reference") + " --scene " + scene +
-                                         " --walkthrough " + (dir / "p.path") + " --out " +
-                                         (dir / "frames") + " --no-progress",
-                                     &status);
+  std::string out =
+      test::runCapture(test::tool("dmmr-reference") + " --scene " + scene + " --walkthrough " +
+                           (dir / "p.path") + " --out " + (dir / "frames") + " --no-progress",
+                       &status);
   EXPECT_EQ(status, 1);
   EXPECT_NE(out.find("bounds.bin"), std::string::npos) << out;
 }

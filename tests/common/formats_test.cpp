@@ -788,9 +788,31 @@ TEST(GeometryFormat, RejectsUnknownEncoding) {
 
 TEST(GeometryFormat, RejectsUnknownFlags) {
   Bytes f = encodeGeometry(sampleGeometry(5, 3, {}, 2));
-  for (uint8_t bit : {16, 32, 64, 128})
+  for (uint8_t bit : {32, 64, 128})  // 16 marks an occluder level of detail
     EXPECT_DMMR_ERROR(decodeGeometry(patched(f, kGeomFlags, {uint8_t(8 | bit)}), "g.bin"), "g.bin",
                       "flags");
+}
+
+TEST(GeometryFormat, LevelOfDetailRoundTrips) {
+  GeometryData g = sampleGeometry(5, 3, {}, 2);
+  g.lod_indices = {0, 1, 2};
+  EXPECT_EQ(decodeGeometry(encodeGeometry(g), "g.bin"), g);
+}
+
+TEST(GeometryFormat, RejectsLevelOfDetailIndexOutOfRange) {
+  GeometryData g = sampleGeometry(5, 3, {}, 2);
+  g.lod_indices = {0, 1, 4};
+  Bytes f = encodeGeometry(g);
+  g.lod_indices = {0, 1, 5};  // vertex 5 does not exist
+  Bytes bad = encodeGeometry(g);
+  EXPECT_NO_THROW(decodeGeometry(f, "g.bin"));
+  EXPECT_DMMR_ERROR(decodeGeometry(bad, "g.bin"), "g.bin", "lod indices");
+}
+
+TEST(GeometryFormat, RejectsMissingLevelOfDetailAfterItsFlag) {
+  Bytes f = encodeGeometry(sampleGeometry(5, 3, {}, 2));
+  EXPECT_DMMR_ERROR(decodeGeometry(patched(f, kGeomFlags, {uint8_t(8 | 16)}), "g.bin"), "g.bin",
+                    "lod index count");
 }
 
 TEST(GeometryFormat, RejectsIndexOutOfRange) {

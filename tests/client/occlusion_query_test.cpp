@@ -1,0 +1,198 @@
+// The visibility stage's query mechanism at the GL level, on OSMesa: occluders
+// drawn into depth with Renderer::beginDepthFrame and draw(), then boxes
+// tested with beginQueries / queryBox / endQueries, exactly as the client's
+// visibility stage does.
+//
+// The camera sits at the origin looking down -Z with a 90 degree field of
+// view on a 64 x 64 frame, so at distance D the frame spans x, y in [-D, D]
+// and one pixel is 2D/64 wide.
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <vector>
+
+#include "draw.h"
+#include "gl_context.h"
+#include "visibility.h"
+
+using namespace dmmr;
+
+namespace {
+
+constexpr int kSize = 64;
+
+Box3d box(Vec3d lo, Vec3d hi) {
+  Box3d b;
+  b.lo = lo;
+  b.hi = hi;
+  return b;
+}
+
+// An axis-aligned quad facing the camera: x in [x0, x1], y in [y0, y1], at z,
+// grey or the given red.
+GeometryData quad(double x0, double x1, double y0, double y1, double z, float red = 0.8f) {
+  GeometryData g;
+  g.positions = {float(x0), float(y0), float(z), float(x1), float(y0), float(z),
+                 float(x1), float(y1), float(z), float(x0), float(y1), float(z)};
+  g.indices = {0, 1, 2, 0, 2, 3};
+  SubMesh s;
+  s.first_index = 0;
+  s.index_count = 6;
+  s.diffuse[0] = red;
+  g.submeshes = {s};
+  return g;
+}
+
+// Appends `b` to `a` as more triangles of the same submesh.
+GeometryData join(GeometryData a, const GeometryData& b) {
+  uint32_t base = uint32_t(a.vertexCount());
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  for (uint32_t i : b.indices) a.indices.push_back(base + i);
+  a.submeshes[0].index_count = uint32_t(a.indices.size());
+  return a;
+}
+
+class OcclusionQuery : public testing::Test {
+ protected:
+  void SetUp() override {
+    ctx_ = createContext({Backend::OSMesa, -1});
+    renderer_ = std::make_unique<Renderer>(ctx_->gl(), kSize, kSize);
+    camera_.eye = {0, 0, 0};
+    camera_.rotation = Quatd{};  // looks down -Z
+    camera_.fovy_deg = 90;
+    camera_.aspect = 1;
+    camera_.near = 0.1;
+  }
+  void TearDown() override {
+    for (GpuMesh& m : meshes_) renderer_->release(m);
+    renderer_.reset();
+    ctx_.reset();
+  }
+
+  // Draws `occluders` into depth within `region`, then queries `b`; returns
+  // the query's result (0 or 1 for ANY_SAMPLES_PASSED, a count otherwise).
+  GLuint query(const std::vector<GeometryData>& occluders, const Box3d& b,
+               GLenum target = GL_ANY_SAMPLES_PASSED, Rect region = {0, 0, kSize, kSize}) {
+    Renderer& r = *renderer_;
+    r.beginDepthFrame(camera_, region);
+    for (const GeometryData& g : occluders) {
+      meshes_.push_back(r.upload(g));
+      r.draw(meshes_.back(), Mat4d::identity(), {});
+    }
+    // A fresh query object each time: a query's target is fixed by its first use.
+    const GlApi& gl = ctx_->gl();
+    GLuint q = 0;
+    gl.GenQueries(1, &q);
+    r.beginQueries();
+    r.queryBox(b, q, target);
+    r.endQueries();
+    GLuint result = 12345;
+    gl.GetQueryObjectuiv(q, GL_QUERY_RESULT, &result);
+    gl.DeleteQueries(1, &q);
+    gl.check("occlusion query test");
+    return result;
+  }
+
+  // Renders `objects` in colour over the whole frame; RGBA, bottom row first.
+  std::vector<uint8_t> render(const std::vector<GeometryData>& objects) {
+    Renderer& r = *renderer_;
+    r.beginFrame(camera_, {0, 0, kSize, kSize});
+    for (const GeometryData& g : objects) {
+      meshes_.push_back(r.upload(g));
+      r.draw(meshes_.back(), Mat4d::identity(), {});
+    }
+    std::vector<uint8_t> px;
+    r.readPixels({0, 0, kSize, kSize}, &px);
+    return px;
+  }
+
+  std::unique_ptr<GlContext> ctx_;
+  std::unique_ptr<Renderer> renderer_;
+  std::vector<GpuMesh> meshes_;
+  Camera camera_;
+};
+
+}  // namespace
+
+TEST_F(OcclusionQuery, NothingDrawnEveryBoxInViewPasses) {
+  EXPECT_EQ(query({}, box({-1, -1, -12}, {1, 1, -10})), 1u);
+  // A box behind the camera is not in view.
+  EXPECT_EQ(query({}, box({-1, -1, 10}, {1, 1, 12})), 0u);
+}
+
+TEST_F(OcclusionQuery, WallHidesABoxBehindIt) {
+  // A 4 x 4 wall at distance 5 covers |x/z|, |y/z| <= 0.4 of the view.
+  GeometryData wall = quad(-2, 2, -2, 2, -5);
+  EXPECT_EQ(query({wall}, box({-1, -1, -12}, {1, 1, -10})), 0u);        // behind
+  EXPECT_EQ(query({wall}, box({-0.5, -0.5, -4}, {0.5, 0.5, -3})), 1u);  // in front
+  EXPECT_EQ(query({wall}, box({7, -1, -11}, {9, 1, -9})), 1u);          // beside, as far
+  // A box that straddles the wall's plane pokes out in front of it.
+  EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -4.5})), 1u);
+  // Behind but larger than the wall's silhouette: its edges show.
+  EXPECT_EQ(query({wall}, box({-5, -5, -12}, {5, 5, -10})), 1u);
+}
+
+TEST_F(OcclusionQuery, BoxCoplanarWithTheWallsFrontFacePasses) {
+  GeometryData wall = quad(-2, 2, -2, 2, -5);
+  // The box's front face lies in the wall's plane: a depth tie is visible.
+  EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -5})), 1u);
+  // A flat box in the wall's plane.
+  EXPECT_EQ(query({wall}, box({-1, -1, -5}, {1, 1, -5})), 1u);
+  // Versus a box one centimetre behind the wall: hidden, so the widening of
+  // query boxes does not make everything near a wall pass.
+  EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -5.01})), 0u);
+}
+
+TEST_F(OcclusionQuery, BoxSeenThroughAOnePixelGapPasses) {
+  // At distance 5 a pixel is 10/64 wide; column 32 spans x in [0, pw] with
+  // its centre at pw/2. The left wall ends at pw/4 and the right one starts
+  // at 3pw/4, so exactly column 32 shows what is behind, over all 64 rows.
+  const double pw = 10.0 / kSize;
+  GeometryData left = quad(-100, 0.25 * pw, -100, 100, -5);
+  GeometryData right = quad(0.75 * pw, 100, -100, 100, -5);
+  Box3d behind = box({-3, -100, -12}, {3, 100, -10});
+  EXPECT_EQ(query({left, right}, behind), 1u);
+  // Queries draw both front and back faces of the box (no face culling), and
+  // both are in the gap: two samples for each of the column's 64 pixels.
+  EXPECT_EQ(query({left, right}, behind, GL_SAMPLES_PASSED), GLuint(2 * kSize)) << "one column";
+  // A box behind the walls but off the gap stays hidden.
+  EXPECT_EQ(query({left, right}, box({2, -1, -12}, {3, 1, -10})), 0u);
+  // Closing the gap hides it.
+  GeometryData closed = quad(0.25 * pw, 100, -100, 100, -5);
+  EXPECT_EQ(query({left, closed}, behind), 0u);
+}
+
+TEST_F(OcclusionQuery, ScissorRegionLimitsTheQuery) {
+  // A wall over the left half of the view; a box behind it that reaches into
+  // the right half, where nothing hides it.
+  GeometryData wall = quad(-100, 0, -100, 100, -5);
+  Box3d behind = box({-3, -1, -12}, {3, 1, -10});
+  const Rect left_half{0, 0, kSize / 2, kSize};
+  EXPECT_EQ(query({wall}, behind), 1u) << "visible in the full frame";
+  EXPECT_EQ(query({wall}, behind, GL_ANY_SAMPLES_PASSED, left_half), 0u)
+      << "the visible part is outside the region";
+  // An unhidden box entirely in the right half does not pass for the left.
+  Box3d right = box({2, -1, -12}, {4, 1, -10});
+  EXPECT_EQ(query({}, right, GL_ANY_SAMPLES_PASSED, left_half), 0u);
+  EXPECT_EQ(query({}, right, GL_ANY_SAMPLES_PASSED, {kSize / 2, 0, kSize / 2, kSize}), 1u);
+}
+
+TEST_F(OcclusionQuery, BoxesNotTakenAtTheNearPlaneGiveAnHonestQuery) {
+  // The stage queries every box that boxReachesNearPlane rejects, and queryBox
+  // widens the box by 0.1% of its size. Here an object's box ends 5 cm in
+  // front of the eye (well beyond the near plane, 1 cm) but is 200 m deep,
+  // so the widened box swallows the eye: near-plane clipping then removes its
+  // front and the query sees only the far faces, behind the occluder. The
+  // object's near quad covers the whole view, so it must not be dropped.
+  camera_.near = 0.01;
+  GeometryData object =
+      join(quad(-100, 100, -100, 100, -0.05, 0.1f), quad(-100, 100, -100, 100, -200, 0.1f));
+  Box3d object_box = box({-100, -100, -200}, {100, 100, -0.05});
+  GeometryData occluder = quad(-1000, 1000, -1000, 1000, -50);
+  // The object changes the picture (its near quad covers everything).
+  std::vector<uint8_t> without = render({occluder}), with = render({occluder, object});
+  ASSERT_NE(without, with);
+  bool taken = boxReachesNearPlane(object_box, camera_);
+  EXPECT_TRUE(taken || query({occluder}, object_box) != 0)
+      << "a visible object would be culled: not taken at the near plane, and its query fails";
+}

@@ -1,0 +1,232 @@
+// The visibility stage's pure parts: the plan (occluders, marked, queried),
+// the sorted-list union, and the near-plane test that decides which objects
+// are taken without a query.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "visibility.h"
+
+using namespace dmmr;
+
+namespace {
+
+using List = std::vector<uint32_t>;
+
+// A random ascending subset of [0, n): each index kept with probability p.
+List randomSubset(std::mt19937& rng, uint32_t n, double p) {
+  std::bernoulli_distribution keep(p);
+  List out;
+  for (uint32_t i = 0; i < n; ++i)
+    if (keep(rng)) out.push_back(i);
+  return out;
+}
+
+bool contains(const List& sorted, uint32_t v) {
+  return std::binary_search(sorted.begin(), sorted.end(), v);
+}
+
+// Checks every property of a plan against a direct computation.
+void checkPlan(const List& region, const List& previous, const List& potential,
+               const List& marked_until, uint32_t frame, const VisibilityPlan& p) {
+  List occluders, marked, queried;
+  for (uint32_t o : region) {
+    if (contains(previous, o) || contains(potential, o))
+      occluders.push_back(o);
+    else if (o < marked_until.size() && frame < marked_until[o])
+      marked.push_back(o);
+    else
+      queried.push_back(o);
+  }
+  EXPECT_EQ(p.occluders, occluders);
+  EXPECT_EQ(p.marked, marked);
+  EXPECT_EQ(p.queried, queried);
+  for (const List* l : {&p.occluders, &p.marked, &p.queried})
+    EXPECT_TRUE(std::adjacent_find(l->begin(), l->end(), std::greater_equal<uint32_t>()) ==
+                l->end())
+        << "not strictly ascending";
+  // Disjoint, and together exactly the region.
+  std::multiset<uint32_t> all;
+  all.insert(p.occluders.begin(), p.occluders.end());
+  all.insert(p.marked.begin(), p.marked.end());
+  all.insert(p.queried.begin(), p.queried.end());
+  EXPECT_EQ(List(all.begin(), all.end()), region);
+}
+
+}  // namespace
+
+TEST(PlanVisibility, SmallHandWrittenCase) {
+  List region = {1, 2, 3, 5, 8, 9, 12};
+  List previous = {0, 2, 9, 10};   // 0 and 10 are outside the region
+  List potential = {3, 4, 9, 13};  // 9 in both lists
+  List marked_until(14, 0);
+  marked_until[1] = 8;   // still marked at frame 7
+  marked_until[5] = 7;   // expires exactly at frame 7
+  marked_until[2] = 20;  // an occluder anyway
+  VisibilityPlan p = planVisibility(region, previous, potential, marked_until, 7);
+  EXPECT_EQ(p.occluders, (List{2, 3, 9}));
+  EXPECT_EQ(p.marked, (List{1}));
+  EXPECT_EQ(p.queried, (List{5, 8, 12}));
+}
+
+TEST(PlanVisibility, EmptyInputs) {
+  VisibilityPlan p = planVisibility({}, {1, 2}, {3}, {5, 5, 5, 5}, 0);
+  EXPECT_TRUE(p.occluders.empty() && p.marked.empty() && p.queried.empty());
+  p = planVisibility({0, 1, 2}, {}, {}, {}, 0);  // nothing known: all queried
+  EXPECT_EQ(p.queried, (List{0, 1, 2}));
+  EXPECT_TRUE(p.occluders.empty() && p.marked.empty());
+}
+
+TEST(PlanVisibility, ShortMarkedUntilMeansNotMarked) {
+  // Objects past the end of marked_until have never passed a query.
+  VisibilityPlan p = planVisibility({0, 3, 4}, {}, {}, {9, 9, 9, 9}, 2);
+  EXPECT_EQ(p.marked, (List{0, 3}));
+  EXPECT_EQ(p.queried, (List{4}));
+}
+
+TEST(PlanVisibility, RandomizedPropertiesHold) {
+  std::mt19937 rng(20240611);
+  for (int round = 0; round < 500; ++round) {
+    uint32_t n = 1 + rng() % 300;
+    std::uniform_real_distribution<double> u(0, 1);
+    List region = randomSubset(rng, n, u(rng));
+    List previous = randomSubset(rng, n + 20, u(rng) * 0.5);  // may reach past the region
+    List potential = randomSubset(rng, n, u(rng) * 0.3);
+    uint32_t frame = rng() % 10;
+    List marked_until(rng() % (n + 1));  // sometimes shorter than the object count
+    for (uint32_t& m : marked_until) m = rng() % 14;
+    SCOPED_TRACE("round " + std::to_string(round));
+    checkPlan(region, previous, potential, marked_until, frame,
+              planVisibility(region, previous, potential, marked_until, frame));
+  }
+}
+
+TEST(MergeSorted, EdgeCases) {
+  EXPECT_TRUE(mergeSorted({}).empty());
+  EXPECT_TRUE(mergeSorted({{}, {}}).empty());
+  EXPECT_EQ(mergeSorted({{3, 7}}), (List{3, 7}));
+  EXPECT_EQ(mergeSorted({{1, 2}, {2, 3}, {}, {0, 3}}), (List{0, 1, 2, 3}));
+  EXPECT_EQ(mergeSorted({{0xFFFFFFFFu}, {0}}), (List{0, 0xFFFFFFFFu}));
+}
+
+TEST(MergeSorted, MatchesStdSetOnRandomLists) {
+  std::mt19937 rng(77);
+  for (int round = 0; round < 300; ++round) {
+    std::vector<List> lists(rng() % 5);
+    std::set<uint32_t> expect;
+    for (List& l : lists) {
+      l = randomSubset(rng, 1 + rng() % 200, 0.3);
+      expect.insert(l.begin(), l.end());
+    }
+    EXPECT_EQ(mergeSorted(lists), List(expect.begin(), expect.end())) << "round " << round;
+  }
+}
+
+namespace {
+
+// Camera at the origin looking down -Z (identity rotation): fovy 90 degrees
+// and aspect 1 give tan(fovy/2) = 1 in both directions, so the near
+// rectangle's corners lie at (+-n, +-n, -n), at distance n * sqrt(3).
+Camera unitCamera(double near) {
+  Camera c;
+  c.eye = {0, 0, 0};
+  c.rotation = Quatd{};
+  c.fovy_deg = 90;
+  c.aspect = 1;
+  c.near = near;
+  return c;
+}
+
+Box3d cube(Vec3d center, double half) {
+  Box3d b;
+  b.lo = center - Vec3d{half, half, half};
+  b.hi = center + Vec3d{half, half, half};
+  return b;
+}
+
+}  // namespace
+
+TEST(BoxReachesNearPlane, EyeInsideTheBox) {
+  Camera c = unitCamera(0.1);
+  EXPECT_TRUE(boxReachesNearPlane(cube({0, 0, 0}, 1), c));
+  EXPECT_TRUE(boxReachesNearPlane(cube({0.5, -0.3, 0.2}, 1), c));
+  // A box the eye touches from outside.
+  Box3d touching;
+  touching.lo = {0, -1, -1};
+  touching.hi = {2, 1, 1};
+  EXPECT_TRUE(boxReachesNearPlane(touching, c));
+}
+
+TEST(BoxReachesNearPlane, FarBoxesDoNot) {
+  Camera c = unitCamera(0.1);
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -10}, 1), c));   // far in front
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, 10}, 1), c));    // far behind
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -1.2}, 1), c));  // 0.2 ahead: twice near
+}
+
+TEST(BoxReachesNearPlane, NearRectangleCornerDistance) {
+  // Along the diagonal through the near rectangle's corner (n, n, -n): a tiny
+  // box there at distance n*sqrt(3) must count; the function allows 1%
+  // more. Beyond 1.02 * n * sqrt(3) it must not.
+  for (double near : {0.1, 1e-3, 2.5}) {
+    Camera c = unitCamera(near);
+    Vec3d dir = normalize(Vec3d{1, 1, -1});
+    double corner = near * std::sqrt(3.0);
+    double tiny = near * 1e-6;
+    // Place a tiny cube so that its nearest point to the eye is at `d`.
+    auto at = [&](double d) { return cube(dir * (d + tiny * std::sqrt(3.0)), tiny); };
+    SCOPED_TRACE("near " + std::to_string(near));
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 0.999), c));  // on the rectangle
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.000), c));  // its corner
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.005), c));  // inside the 1% margin
+    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.02), c));  // just beyond
+    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.5), c));
+  }
+}
+
+TEST(BoxReachesNearPlane, UsesAspectAndFov) {
+  // fovy 60, aspect 2: ty = tan 30 = 0.57735, tx = 1.1547, corner distance
+  // n * sqrt(1 + 1/3 + 4/3) = n * 1.63299. A box along +X at the same
+  // distance as the corner must count, one at twice it must not; along the
+  // view axis only ~1.633 n counts, not 1.7 n.
+  Camera c = unitCamera(1.0);
+  c.fovy_deg = 60;
+  c.aspect = 2;
+  double corner = std::sqrt(1 + 1.0 / 3 + 4.0 / 3);
+  ASSERT_NEAR(corner, 1.63299, 1e-5);
+  auto slab = [](double x0) {  // a flat box from x0 outwards, centred on the X axis
+    Box3d b;
+    b.lo = {x0, -0.01, -0.01};
+    b.hi = {x0 + 1, 0.01, 0.01};
+    return b;
+  };
+  EXPECT_TRUE(boxReachesNearPlane(slab(corner * 0.99), c));
+  EXPECT_FALSE(boxReachesNearPlane(slab(corner * 1.05), c));
+  Box3d ahead;
+  ahead.lo = {-0.5, -0.5, -10};
+  ahead.hi = {0.5, 0.5, -corner * 1.0};
+  EXPECT_TRUE(boxReachesNearPlane(ahead, c));
+  ahead.hi.z = -corner * 1.05;
+  EXPECT_FALSE(boxReachesNearPlane(ahead, c));
+}
+
+TEST(BoxReachesNearPlane, CountsTheWideningOfQueryBoxes) {
+  // Renderer::queryBox widens a box by 0.1% of its size (and a little more):
+  // a box 200 m deep whose front is 5 cm from the eye (near 1 cm) has a query
+  // box that swallows the eye, so it must be taken without a query. See
+  // OcclusionQuery.BoxesNotTakenAtTheNearPlaneGiveAnHonestQuery for what a
+  // query on it would say.
+  Camera c = unitCamera(0.01);
+  Box3d deep;
+  deep.lo = {-100, -100, -200};
+  deep.hi = {100, 100, -0.05};
+  EXPECT_TRUE(boxReachesNearPlane(deep, c));
+  // The same front face on a box 1 m deep does not come near.
+  deep.lo.z = -1.05;
+  EXPECT_FALSE(boxReachesNearPlane(deep, c));
+}

@@ -1,0 +1,218 @@
+// End to end: the clients' visibility stage (occluders and occlusion queries)
+// on a generated plant. With the default, conservative settings the frames of
+// mpirun dmmr-render must be pixel-identical to dmmr-reference over the whole
+// walkthrough, and the stage must really cull (the clients draw fewer
+// triangles than the server found in the frustum). The approximate settings
+// (--query-threshold, --keep-frames) must run to the end.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <osgDB/WriteFile>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "compare.h"
+#include "preprocess.h"
+#include "scenegen.h"
+#include "test_support.h"
+#include "walkthrough.h"
+
+namespace fs = std::filesystem;
+using namespace dmmr;
+using dmmr::test::TempDir;
+
+namespace {
+
+constexpr int kWidth = 192, kHeight = 144;
+constexpr uint32_t kFlyFrames = 16, kOrbitFrames = 12;
+const std::string kSize =
+    " --width " + std::to_string(kWidth) + " --height " + std::to_string(kHeight);
+
+// A plant of ~150k triangles in ~3000 geodes, preprocessed, with a fly-through
+// and an orbit, and the reference frames of both. Built once per binary.
+struct PlantScene {
+  TempDir dir;
+  std::string scene, fly, orbit, fly_reference, orbit_reference;
+  PlantScene() {
+    scenegen::PlantParams params;
+    params.seed = 11;
+    params.triangles = 150'000;
+    params.geodes = 3000;
+    osg::ref_ptr<osg::Node> plant = scenegen::makePlant(params);
+    std::string model = dir / "plant.osgb";
+    EXPECT_TRUE(osgDB::writeNodeFile(*plant, model));
+    PreprocessOptions o;
+    o.inputs = {model};
+    o.out = scene = dir / "scene";
+    o.progress = false;
+    preprocess(o);
+    osg::BoundingBox bounds = scenegen::sceneBounds(*plant);
+    writeWalkthrough(fly = dir / "fly.path",
+                     scenegen::makeWalkthrough(bounds, kFlyFrames, scenegen::PathKind::FlyThrough));
+    writeWalkthrough(orbit = dir / "orbit.path",
+                     scenegen::makeWalkthrough(bounds, kOrbitFrames, scenegen::PathKind::Orbit));
+    fly_reference = reference(fly, "fly-reference");
+    orbit_reference = reference(orbit, "orbit-reference");
+  }
+  std::string reference(const std::string& path, const std::string& name) {
+    std::string out = dir / name;
+    int status = 0;
+    std::string log =
+        test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
+                             scene + " --walkthrough " + path + " --out " + out,
+                         &status);
+    EXPECT_EQ(status, 0) << log;
+    return out;
+  }
+  // mpirun dmmr-render with `clients` clients; returns the exit status.
+  int render(int clients, const std::string& path, const std::string& out,
+             const std::string& extra = "") {
+    int status = 0;
+    std::string log =
+        test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+                             test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
+                             scene + " --walkthrough " + path + " --out " + out + " " + extra,
+                         &status);
+    EXPECT_NE(status, 124) << "timed out: a rank hung\n" << log;
+    EXPECT_EQ(status, 0) << log;
+    return status;
+  }
+};
+
+PlantScene& plant() {
+  static PlantScene* s = new PlantScene;
+  return *s;
+}
+
+// The stats CSV as one map per row, column name to value.
+std::vector<std::map<std::string, double>> readCsv(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::vector<std::string> header;
+  std::vector<std::map<std::string, double>> rows;
+  auto split = [](const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) out.push_back(cell);
+    return out;
+  };
+  if (!std::getline(in, line)) return rows;
+  header = split(line);
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells = split(line);
+    EXPECT_EQ(cells.size(), header.size()) << line;
+    std::map<std::string, double> row;
+    for (size_t i = 0; i < cells.size() && i < header.size(); ++i)
+      row[header[i]] = std::stod(cells[i]);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+double column(const std::map<std::string, double>& row, const std::string& name) {
+  auto it = row.find(name);
+  EXPECT_NE(it, row.end()) << "no column " << name;
+  return it == row.end() ? 0 : it->second;
+}
+
+double clientSum(const std::map<std::string, double>& row, int clients, const std::string& name) {
+  double sum = 0;
+  for (int k = 1; k <= clients; ++k) sum += column(row, "c" + std::to_string(k) + "_" + name);
+  return sum;
+}
+
+int64_t differingPixels(const std::string& reference, const std::string& out, size_t frames) {
+  std::vector<FrameDiff> diffs = compareDirectories(reference, out);
+  EXPECT_EQ(diffs.size(), frames);
+  int64_t differing = 0;
+  for (const FrameDiff& d : diffs) differing += d.diff.differing_pixels;
+  return differing;
+}
+
+}  // namespace
+
+class VisibilityStage : public testing::TestWithParam<int> {};
+
+TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
+  PlantScene& s = plant();
+  int clients = GetParam();
+  std::string out = s.dir / ("fly" + std::to_string(clients));
+  ASSERT_EQ(s.render(clients, s.fly, out, "--stats " + out + ".csv"), 0);
+
+  std::vector<FrameDiff> diffs = compareDirectories(s.fly_reference, out);
+  ASSERT_EQ(diffs.size(), kFlyFrames);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+
+  std::vector<std::map<std::string, double>> rows = readCsv(out + ".csv");
+  ASSERT_EQ(rows.size(), kFlyFrames);
+  size_t culled_frames = 0;
+  double drawn = 0, in_frustum = 0;
+  std::vector<double> queried(size_t(clients) + 1, 0);
+  for (const auto& row : rows) {
+    double triangles = clientSum(row, clients, "triangles");
+    double frustum = column(row, "triangles_in_frustum");
+    culled_frames += triangles < frustum;
+    drawn += triangles;
+    in_frustum += frustum;
+    for (int k = 1; k <= clients; ++k) {
+      std::string c = "c" + std::to_string(k) + "_";
+      queried[size_t(k)] += column(row, c + "queried");
+      // The visible list is a subset of the region's objects.
+      EXPECT_LE(column(row, c + "visible"), column(row, c + "objects"));
+    }
+  }
+  RecordProperty("culled_frames", int(culled_frames));
+  RecordProperty("drawn_over_frustum_percent", int(100 * drawn / in_frustum));
+  std::printf("%d clients: %zu of %u frames culled; triangles drawn %.0f of %.0f in the frustum\n",
+              clients, culled_frames, kFlyFrames, drawn, in_frustum);
+  EXPECT_GE(culled_frames * 2, rows.size()) << "the clients drew the whole frustum too often";
+  EXPECT_LT(drawn, in_frustum);
+  for (int k = 1; k <= clients; ++k) EXPECT_GT(queried[size_t(k)], 0) << "client " << k;
+}
+
+INSTANTIATE_TEST_SUITE_P(Clients, VisibilityStage, testing::Values(1, 3));
+
+TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
+  // The counterpart of the culling check above: without the stage the
+  // clients draw every triangle of the frustum (some twice, where objects
+  // straddle regions), so fewer triangles there means the stage culled.
+  PlantScene& s = plant();
+  std::string out = s.dir / "off";
+  ASSERT_EQ(s.render(2, s.fly, out, "--visibility off --stats " + out + ".csv"), 0);
+  EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0);
+  std::vector<std::map<std::string, double>> rows = readCsv(out + ".csv");
+  ASSERT_EQ(rows.size(), kFlyFrames);
+  for (const auto& row : rows) {
+    EXPECT_GE(clientSum(row, 2, "triangles"), column(row, "triangles_in_frustum"));
+    EXPECT_EQ(clientSum(row, 2, "queried"), 0);
+  }
+}
+
+TEST(VisibilityStageOrbit, OutsideViewIsExact) {
+  // From outside, the plant's walls hide most of it: many queries fail.
+  PlantScene& s = plant();
+  std::string out = s.dir / "orbit";
+  ASSERT_EQ(s.render(2, s.orbit, out), 0);
+  std::vector<FrameDiff> diffs = compareDirectories(s.orbit_reference, out);
+  ASSERT_EQ(diffs.size(), kOrbitFrames);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+}
+
+TEST(VisibilityStageApproximate, ThresholdAndKeepFramesComplete) {
+  // Approximate settings: a query must pass 50 samples, and objects stay
+  // visible for 10 frames. Frames may differ from the reference; the count
+  // is recorded, not judged.
+  PlantScene& s = plant();
+  std::string out = s.dir / "approx";
+  ASSERT_EQ(
+      s.render(3, s.fly, out, "--query-threshold 50 --keep-frames 10 --stats " + out + ".csv"), 0);
+  int64_t differing = differingPixels(s.fly_reference, out, kFlyFrames);
+  RecordProperty("differing_pixels", std::to_string(differing));
+  std::printf("--query-threshold 50 --keep-frames 10: %lld differing pixels over %u frames\n",
+              (long long)differing, kFlyFrames);
+  EXPECT_EQ(readCsv(out + ".csv").size(), kFlyFrames);
+}
