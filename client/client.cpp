@@ -69,10 +69,7 @@ class VisibilityStage {
     r.beginDepthFrame(job.camera, job.region);
     for (uint32_t o : plan.occluders) {
       const GpuMesh& mesh = gl_.meshes.acquire(scene_.objects[o].geometry);
-      if (opts_.occluder_lod)
-        r.drawOccluderLod(mesh, scene_.objects[o].transform);
-      else
-        r.draw(mesh, scene_.objects[o].transform, gl_.meshes.textures());
+      r.drawDepth(mesh, scene_.objects[o].transform, opts_.occluder_lod);
     }
     // Queries: every object not marked, occluders included (an occluder hidden
     // by other occluders need not be drawn; one that shows passes against its

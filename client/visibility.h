@@ -25,8 +25,10 @@ struct VisibilityOptions {
   // Anything above 0 is an approximation.
   uint32_t query_threshold = 0;
   // An object that passed stays marked visible, without queries, for this
-  // many further frames (the paper's n). Any n is conservative.
-  uint32_t keep_frames = 3;
+  // many further frames (the paper's n). Any n is conservative; 0 (query
+  // every frame) draws the least, and on llvmpipe, where queries are cheap
+  // next to drawing, is also the fastest (docs/benchmarks.md).
+  uint32_t keep_frames = 0;
   // Draw the preprocessor's potential occluders into depth every frame, or
   // only while there is no previous visible list (the first frame).
   bool potential_every_frame = false;

@@ -335,17 +335,25 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_
   gl_.BindVertexArray(0);
 }
 
-void Renderer::drawOccluderLod(const GpuMesh& mesh, const Mat4d& object_to_world) {
-  if (mesh.lod_count == 0) {
-    draw(mesh, object_to_world, {});
-    return;
-  }
-  float mvf[16];
+void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool lod) {
+  // The position-only program: its vertex transform is the same expression as
+  // the shading program's, so depth matches the render pass, while the
+  // fragment work (lighting, derivatives) is skipped.
+  gl_.UseProgram(id_program_);
+  float proj[16], mvf[16];
+  toFloat(projectionMatrix(camera_), proj);
   toFloat(cameraRelative(object_to_world), mvf);
-  gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
+  gl_.UniformMatrix4fv(u_id_proj_, 1, GL_FALSE, proj);
+  gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
   gl_.BindVertexArray(mesh.vao);
-  gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
-                   reinterpret_cast<const void*>(uintptr_t(mesh.lod_first) * 4));
+  if (lod && mesh.lod_count > 0) {
+    gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(uintptr_t(mesh.lod_first) * 4));
+  } else {
+    for (const SubMesh& s : mesh.submeshes)
+      gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
+                       reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+  }
   gl_.BindVertexArray(0);
 }
 

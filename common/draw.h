@@ -74,9 +74,10 @@ class Renderer {
   void beginIdFrame(const Camera& camera, const Rect& region);
   void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id);
 
-  // Draws an object into depth with its occluder level of detail where it
-  // has one (an approximation), else in full. For beginDepthFrame passes.
-  void drawOccluderLod(const GpuMesh& mesh, const Mat4d& object_to_world);
+  // Draws an object into depth only (beginDepthFrame passes), in full or,
+  // with `lod`, with its occluder level of detail where it has one (an
+  // approximation).
+  void drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool lod);
 
   // Draws one object; `textures` maps texture file indices to GL names.
   void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);

@@ -21,11 +21,15 @@ scene() {  # name, scenegen arguments...
 }
 scene plant10m plant --seed 1 --triangles 10000000 --frames 60
 scene monument4m monument --seed 1 --triangles 4000000 --frames 60
+for s in plant10m monument4m; do  # the same scenes with occluder levels of detail
+  [ -d "out/bench/$s-lod.scene" ] || $bin/dmmr-preprocess "out/bench/$s.osgb" -o "out/bench/$s-lod.scene" \
+    --lod-ratio 0.25 --no-progress >/dev/null
+done
 
-render() {  # scene, path, label, extra options...
+render() {  # scene, path, label, extra options... (the scene dir may be overridden by SCENE_DIR)
   local s=$1 p=$2 label=$3
   shift 3
-  "${mpi[@]}" $bin/dmmr-render --scene "out/bench/$s.scene" --walkthrough "$p" --out "$out/$label" \
+  "${mpi[@]}" $bin/dmmr-render --scene "${SCENE_DIR:-out/bench/$s.scene}" --walkthrough "$p" --out "$out/$label" \
     --width "$size" --height "$size" --stats "$out/$label.csv" --no-progress "$@"
   $bin/dmmr-compare "$out/ref-$s" "$out/$label" --csv "$out/$label.cmp.csv" --min-psnr 0 \
     --max-diff-pixels 999999999 >/dev/null
@@ -39,9 +43,11 @@ for s in plant10m monument4m; do
   render "$s" "$p" "$s-serial" --in-flight 1
   render "$s" "$p" "$s-frustum-only" --visibility off
   for t in 0 16 64; do
-    for k in 3 10; do
+    for k in 0 3 10; do
       render "$s" "$p" "$s-t$t-k$k" --query-threshold $t --keep-frames $k
     done
   done
+  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod" --occluder-lod --keep-frames 0
+  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod-t16" --occluder-lod --query-threshold 16 --keep-frames 0
 done
 python3 scripts/bench/visibility_report.py "$out" plant10m monument4m

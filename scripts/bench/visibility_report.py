@@ -50,11 +50,15 @@ for s in scenes:
               f"{med(rs, 'c1_retrieve_ms'):.1f} | {med(rs, 'c1_pass_ms'):.1f} | {med(rs, 'c1_render_ms'):.1f} | "
               f"{med(rs, 'c1_queried'):.0f} | {med(rs, 'c1_visible'):.0f} | {errors(s + '-' + k)[2]} |")
     print(f"\n#### {s}: speed against error (visibility settings)\n")
-    print("| query threshold (samples) | keep frames | frame ms | triangles drawn | mean PSNR dB | worst PSNR dB | worst differing pixels |")
+    print("| query threshold (samples; front and back faces count) | keep frames | frame ms | triangles drawn | mean PSNR dB | worst PSNR dB | worst differing pixels |")
     print("|---|---|---|---|---|---|---|")
     for t in (0, 16, 64):
-        for k in (3, 10):
+        for k in (0, 3, 10):
             rs = rows(f"{s}-t{t}-k{k}")
             mean, worst, diff = errors(f"{s}-t{t}-k{k}")
             print(f"| {t} | {k} | {med(rs, 'frame_ms'):.1f} | {med(rs, 'c1_triangles'):,.0f} | {mean} | {worst} | {diff} |")
+    for label, t in (("lod", 0), ("lod-t16", 16)):
+        rs = rows(f"{s}-{label}")
+        mean, worst, diff = errors(f"{s}-{label}")
+        print(f"| {t}, occluder LOD | 0 | {med(rs, 'frame_ms'):.1f} | {med(rs, 'c1_triangles'):,.0f} | {mean} | {worst} | {diff} |")
     print()

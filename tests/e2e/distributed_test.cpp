@@ -179,3 +179,11 @@ TEST(DistributedErrors, StageFailingMidRunEndsEveryRankWithItsMessage) {
   EXPECT_NE(log.find("stage: "), std::string::npos) << log;
   EXPECT_NE(log.find("/geometry/"), std::string::npos) << log;
 }
+
+TEST(DistributedErrors, MarkingObjectsVisibleForFramesIsStillExact) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "keep";
+  s.render(2, out, "--keep-frames 3");
+  for (const FrameDiff& d : compareDirectories(s.reference, out))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+}
