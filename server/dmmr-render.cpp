@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "cli_options.h"
 #include "client.h"
 #include "error.h"
 #include "server.h"
@@ -13,16 +14,8 @@ int main(int argc, char** argv) {
   dmmr::ClientOptions c;
   std::string backend = "osmesa", codec = "lz4";
   CLI::App app{"dmmr-render: distributed rendering of a walkthrough (rank 0 server, 1..N clients)"};
-  app.add_option("--scene", s.scene, "preprocessed scene directory")->required();
-  app.add_option("--walkthrough", s.walkthrough, "AnimationPath file")->required();
-  app.add_option("--out", s.out, "output directory for frame_NNNNNN.png")->required();
-  app.add_option("--stats", s.stats, "per-frame statistics CSV");
-  app.add_option("--width", s.view.width, "image width")->check(CLI::Range(1, 16384));
-  app.add_option("--height", s.view.height, "image height")->check(CLI::Range(1, 16384));
-  app.add_option("--fovy", s.view.fovy_deg, "vertical field of view, degrees")
-      ->check(CLI::Range(1.0, 179.0));
-  app.add_option("--near", s.view.near, "near plane distance (default: scene diagonal * 1e-5)")
-      ->check(CLI::PositiveNumber);
+  dmmr::RunPaths paths;
+  dmmr::addRunOptions(app, paths, s.view);
   app.add_option("--in-flight", s.in_flight, "frames sent ahead of the last assembled")
       ->check(CLI::Range(1, 16));
   app.add_option("--backend", backend, "client GL backend: osmesa or egl")
@@ -55,7 +48,10 @@ int main(int argc, char** argv) {
     if (quiet) return e.get_exit_code() == 0 ? 0 : 1;
     return app.exit(e);
   }
-  c.scene = s.scene;
+  s.scene = c.scene = paths.scene;
+  s.walkthrough = paths.walkthrough;
+  s.out = paths.out;
+  s.stats = paths.stats;
   c.view = s.view;
   c.visibility_context = {dmmr::parseBackend(backend), visDevice};
   c.render_context = {dmmr::parseBackend(backend), renderDevice};

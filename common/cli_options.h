@@ -1,0 +1,31 @@
+// Command-line options shared by the tools that render a walkthrough, so
+// that every renderer of a run is told the same things the same way.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "camera.h"
+
+namespace dmmr {
+
+struct RunPaths {
+  std::string scene, walkthrough, out, stats;
+};
+
+// --scene, --walkthrough, --out (required), --stats, and the view: --width,
+// --height, --fovy, --near.
+inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view) {
+  app.add_option("--scene", paths.scene, "preprocessed scene directory")->required();
+  app.add_option("--walkthrough", paths.walkthrough, "AnimationPath file")->required();
+  app.add_option("--out", paths.out, "output directory for frame_NNNNNN.png")->required();
+  app.add_option("--stats", paths.stats, "per-frame statistics CSV");
+  app.add_option("--width", view.width, "image width")->check(CLI::Range(1, 16384));
+  app.add_option("--height", view.height, "image height")->check(CLI::Range(1, 16384));
+  app.add_option("--fovy", view.fovy_deg, "vertical field of view, degrees")
+      ->check(CLI::Range(1.0, 179.0));
+  app.add_option("--near", view.near, "near plane distance (default: scene diagonal * 1e-5)")
+      ->check(CLI::PositiveNumber);
+}
+
+}  // namespace dmmr
