@@ -84,49 +84,28 @@ class VisibilityStage {
     std::vector<uint32_t> candidates, taken = plan.marked;
     for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
       (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
-    std::vector<uint32_t> passed;
-    std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
-    GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
-    const GlApi& gl = gl_.context->gl();
-    double retrieve = 0;
-    size_t issued = 0;
-    for (size_t size : {size_t(16), size_t(4), size_t(1)}) {
-      std::vector<std::pair<size_t, size_t>> asked;
-      next.clear();
-      r.beginQueries();
-      for (auto [begin, end] : runs)
-        for (size_t b = begin; b < end; b += size) {
-          size_t e = std::min(end, b + size);
-          Box3d box;
-          for (size_t k = b; k < e; ++k) box.expand(scene_.objects[candidates[k]].box);
-          if (boxReachesNearPlane(box, job.camera)) {
-            if (e - b == 1)
-              passed.push_back(candidates[b]);
-            else
-              next.push_back({b, e});
-            continue;
-          }
-          if (queries_.size() <= asked.size()) growQueries(asked.size() + 1);
-          r.queryBox(box, queries_[asked.size()], target);
-          asked.push_back({b, e});
-        }
-      r.endQueries();
-      issued += asked.size();
-      auto tq = Clock::now();
-      for (size_t i = 0; i < asked.size(); ++i) {
-        GLuint samples = 0;
-        gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
-        bool shows =
-            target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold;
-        if (!shows) continue;
-        if (asked[i].second - asked[i].first == 1)
-          passed.push_back(candidates[asked[i].first]);
-        else
-          next.push_back(asked[i]);
-      }
-      retrieve += msSince(tq);
-      runs.swap(next);
+    QueryTally tally;
+    std::vector<uint32_t> passed = queryHierarchically(candidates, job.camera, &tally);
+    // Second pass, for frames where the previous list was a poor occluder set
+    // (the camera went through a wall): draw what passed and was not yet in
+    // depth, and test it again against that fuller depth. Each object still
+    // passes wherever it is the front-most (its widened box lies in front of
+    // it), so the argument for exactness is unchanged.
+    std::vector<uint32_t> fresh, kept;
+    for (uint32_t o : passed)
+      (std::binary_search(plan.occluders.begin(), plan.occluders.end(), o) ? kept : fresh)
+          .push_back(o);
+    if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
+      std::sort(fresh.begin(), fresh.end());
+      for (uint32_t o : fresh)
+        r.drawDepth(gl_.meshes.acquire(scene_.objects[o].geometry), scene_.objects[o].transform,
+                    opts_.occluder_lod);
+      passed = queryHierarchically(fresh, job.camera, &tally);
+      passed.insert(passed.end(), kept.begin(), kept.end());
     }
+    const GlApi& gl = gl_.context->gl();
+    double retrieve = tally.retrieve_ms;
+    size_t issued = tally.issued;
     gl.check("occlusion queries");
     out.stats.prepare_ms = msSince(t0) - retrieve;
     out.stats.retrieve_ms = retrieve;
@@ -142,6 +121,61 @@ class VisibilityStage {
   }
 
  private:
+  struct QueryTally {
+    size_t issued = 0;
+    double retrieve_ms = 0;
+  };
+
+  // Tests `candidates` (ascending) against the depth drawn so far: runs of
+  // 16, then 4, then 1 consecutive objects by their union box; returns those
+  // that pass. Boxes reaching the near plane are not queried: they pass.
+  std::vector<uint32_t> queryHierarchically(const std::vector<uint32_t>& candidates,
+                                            const Camera& camera, QueryTally* tally) {
+    Renderer& r = gl_.renderer;
+    const GlApi& gl = gl_.context->gl();
+    GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
+    std::vector<uint32_t> passed;
+    std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
+    for (size_t size : {size_t(16), size_t(4), size_t(1)}) {
+      std::vector<std::pair<size_t, size_t>> asked;
+      next.clear();
+      r.beginQueries();
+      for (auto [begin, end] : runs)
+        for (size_t b = begin; b < end; b += size) {
+          size_t e = std::min(end, b + size);
+          Box3d box;
+          for (size_t k = b; k < e; ++k) box.expand(scene_.objects[candidates[k]].box);
+          if (boxReachesNearPlane(box, camera)) {
+            if (e - b == 1)
+              passed.push_back(candidates[b]);
+            else
+              next.push_back({b, e});
+            continue;
+          }
+          if (queries_.size() <= asked.size()) growQueries(asked.size() + 1);
+          r.queryBox(box, queries_[asked.size()], target);
+          asked.push_back({b, e});
+        }
+      r.endQueries();
+      tally->issued += asked.size();
+      auto tq = Clock::now();
+      for (size_t i = 0; i < asked.size(); ++i) {
+        GLuint samples = 0;
+        gl.GetQueryObjectuiv(queries_[i], GL_QUERY_RESULT, &samples);
+        bool shows =
+            target == GL_ANY_SAMPLES_PASSED ? samples != 0 : samples > opts_.query_threshold;
+        if (!shows) continue;
+        if (asked[i].second - asked[i].first == 1)
+          passed.push_back(candidates[asked[i].first]);
+        else
+          next.push_back(asked[i]);
+      }
+      tally->retrieve_ms += msSince(tq);
+      runs.swap(next);
+    }
+    return passed;
+  }
+
   void growQueries(size_t n) {
     size_t old = queries_.size();
     queries_.resize(std::max(n, old * 2));

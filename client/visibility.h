@@ -35,6 +35,10 @@ struct VisibilityOptions {
   // Draw occluders with the preprocessor's level of detail: cheaper, but an
   // approximation (a simplified occluder can hide what the full one shows).
   bool occluder_lod = false;
+  // Objects that pass the first query pass without having been occluders are
+  // drawn into depth and queried again when there are at least this many
+  // (0: always; a very large value turns the second pass off).
+  uint32_t second_pass_min = 1;
 };
 
 // Which objects of a region the stage draws as occluders, which it takes as

@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
                  "samples a query must pass (0: any; above 0 approximates)");
   app.add_option("--keep-frames", c.visibility.keep_frames,
                  "frames an object stays visible after passing a query");
+  app.add_option("--second-pass-min", c.visibility.second_pass_min,
+                 "objects newly passing that trigger a second depth-and-query pass "
+                 "(large: never)");
   app.add_flag("--occluder-lod", c.visibility.occluder_lod,
                "draw occluders with their level of detail (faster, approximate)");
   app.add_flag("--potential-occluders-every-frame", c.visibility.potential_every_frame,
