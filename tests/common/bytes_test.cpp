@@ -13,6 +13,7 @@
 
 #include "bytes.h"
 #include "error.h"
+#include "test_support.h"
 
 namespace dmmr {
 namespace {
@@ -48,15 +49,7 @@ std::vector<uint8_t> handContainer(const char* magic, uint32_t version,
   return f;
 }
 
-template <typename F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dmmr::test::errorOf;
 
 // Expects `f` to throw dmmr::Error whose message holds every needle.
 template <typename F>

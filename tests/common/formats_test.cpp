@@ -29,6 +29,7 @@
 #include "error.h"
 #include "formats.h"
 #include "scene.h"
+#include "test_support.h"
 
 // ---- allocation tracking -----------------------------------------------------
 // Replacing the global operator new lets the hostile-count tests check that a
@@ -132,15 +133,7 @@ Bytes patched(const Bytes& file, size_t payload_offset, std::initializer_list<ui
   return withPayload(file, p);
 }
 
-template <typename F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dmmr::test::errorOf;
 
 // Expects `f` to throw dmmr::Error whose message holds `path` and `needle`.
 #define EXPECT_DMMR_ERROR(stmt, path, needle)                                            \

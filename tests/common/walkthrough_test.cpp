@@ -9,6 +9,7 @@
 #include <string>
 
 #include "error.h"
+#include "test_support.h"
 #include "walkthrough.h"
 
 namespace dmmr {
@@ -16,15 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-template <typename F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using dmmr::test::errorOf;
 
 // Expects parseWalkthrough(text, "paths/w.path") to fail with a message that
 // starts "paths/w.path:LINE: " and holds `needle`.

@@ -6,7 +6,20 @@
 #include <filesystem>
 #include <string>
 
+#include "error.h"
+
 namespace dmmr::test {
+
+// The message of the dmmr::Error that `f` throws, or "" when it throws none.
+template <typename F>
+std::string errorOf(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
 
 // A fresh directory under the system temp dir, removed when destroyed.
 class TempDir {
