@@ -186,7 +186,6 @@ Renderer::~Renderer() {
 
 GpuMesh Renderer::upload(const GeometryData& g) {
   GpuMesh m;
-  m.has_normals = !g.normals.empty();
   m.submeshes = g.submeshes;
   m.triangles = g.triangleCount();
   gl_.GenVertexArrays(1, &m.vao);

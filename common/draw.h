@@ -23,7 +23,6 @@ namespace dmmr {
 struct GpuMesh {
   GLuint vao = 0;
   GLuint buffers[5] = {};  // positions, normals, colors, texcoords, indices
-  bool has_normals = false;
   std::vector<SubMesh> submeshes;
   // The occluder level of detail's range in the index buffer (count 0: none).
   uint32_t lod_first = 0, lod_count = 0;
