@@ -1,9 +1,17 @@
 #!/usr/bin/env bash
 # Quick start 2: installs what is missing, builds, runs the whole test suite.
-# Extra arguments go to ctest (e.g. scripts/test.sh -L unit).
+# Extra arguments go to ctest (e.g. scripts/test.sh -L unit). Then every file
+# reader's libFuzzer target runs a bounded number of inputs (clang build in
+# build-fuzz/; DMMR_SKIP_FUZZ=1 skips it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 scripts/build.sh
-cd "${DMMR_BUILD_DIR:-build}"
-ctest --output-on-failure -j "$(nproc)" --timeout 600 "$@"
+(cd "${DMMR_BUILD_DIR:-build}" && ctest --output-on-failure -j "$(nproc)" --timeout 600 "$@")
+
+if [ -z "${DMMR_SKIP_FUZZ:-}" ]; then
+  CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DDMMR_FUZZ=ON >/dev/null
+  cmake --build build-fuzz -j "$(nproc)" --target dmmr_fuzz
+  (cd build-fuzz && ctest --output-on-failure -L fuzz --timeout 300)
+fi
