@@ -127,8 +127,9 @@ class VisibilityStage {
   };
 
   // Tests `candidates` (ascending) against the depth drawn so far: runs of
-  // 16, then 4, then 1 consecutive objects by their union box; returns those
-  // that pass. Boxes reaching the near plane are not queried: they pass.
+  // consecutive objects by their union box, in rounds of decreasing run size
+  // (options' run_sizes, ending at 1); returns those that pass. Boxes
+  // reaching the near plane are not queried: they pass.
   std::vector<uint32_t> queryHierarchically(const std::vector<uint32_t>& candidates,
                                             const Camera& camera, QueryTally* tally) {
     Renderer& r = gl_.renderer;
@@ -136,7 +137,7 @@ class VisibilityStage {
     GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
     std::vector<uint32_t> passed;
     std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
-    for (size_t size : {size_t(16), size_t(4), size_t(1)}) {
+    for (uint32_t size : opts_.run_sizes) {
       std::vector<std::pair<size_t, size_t>> asked;
       next.clear();
       r.beginQueries();

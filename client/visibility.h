@@ -39,6 +39,10 @@ struct VisibilityOptions {
   // drawn into depth and queried again when there are at least this many
   // (0: always; a very large value turns the second pass off).
   uint32_t second_pass_min = 1;
+  // Hierarchical query rounds: runs of this many consecutive objects are
+  // tested by their union box, then the runs that pass at the next size; the
+  // last size must be 1. Each round waits once for the query results.
+  std::vector<uint32_t> run_sizes = {16, 4, 1};
 };
 
 // Which objects of a region the stage draws as occluders, which it takes as

@@ -1,6 +1,7 @@
 // mpirun -np N+1 dmmr-render --scene DIR --walkthrough PATH --out DIR
 // Rank 0 is the server; ranks 1..N are clients.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 
@@ -35,6 +36,10 @@ int main(int argc, char** argv) {
   app.add_option("--second-pass-min", c.visibility.second_pass_min,
                  "objects newly passing that trigger a second depth-and-query pass "
                  "(large: never)");
+  app.add_option("--query-runs", c.visibility.run_sizes,
+                 "hierarchical query rounds: run sizes, decreasing, ending at 1")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber);
   app.add_flag("--occluder-lod", c.visibility.occluder_lod,
                "draw occluders with their level of detail (faster, approximate)");
   app.add_flag("--potential-occluders-every-frame", c.visibility.potential_every_frame,
@@ -59,6 +64,11 @@ int main(int argc, char** argv) {
   c.visibility_context = {dmmr::parseBackend(backend), visDevice};
   c.render_context = {dmmr::parseBackend(backend), renderDevice};
   c.visibility.enabled = visibility == "on";
+  if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
+      !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
+    if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
+    return 1;
+  }
   c.codec = dmmr::parseCodec(codec);
 
   int status = 0;
