@@ -15,8 +15,7 @@
 
 #include <CLI/CLI.hpp>
 #include <osgDB/FileNameUtils>
-#include <osgDB/ReadFile>
-#include <osgDB/WriteFile>
+#include <osgDB/Registry>
 
 #include "error.h"
 #include "scenegen.h"
@@ -35,19 +34,31 @@ struct Options {
   bool geodesGiven = false;  // else each generator's own default
 };
 
+// CLI11 would wrap "-5" into a huge unsigned value; refuse signs up front.
+const CLI::Validator kUnsigned(
+    [](std::string& s) {
+      return s.find('-') == std::string::npos ? std::string() : "must not be negative";
+    },
+    "UINT");
+
 void addOutputOptions(CLI::App* cmd, Options& o) {
   cmd->add_option("-o,--output", o.output, "output scene, e.g. scene.osgb")->required();
   cmd->add_option("--walkthrough", o.walkthrough, "camera path to write (default: OUT.path)");
-  cmd->add_option("--frames", o.frames, "control points in the camera path")->capture_default_str();
+  cmd->add_option("--frames", o.frames, "control points in the camera path")
+      ->check(kUnsigned)
+      ->capture_default_str();
   cmd->add_option("--path", o.path,
                   "camera path kind (default: fly, orbit for one copy of a model)")
       ->check(CLI::IsMember({"fly", "orbit"}));
 }
 
 void addGeneratorOptions(CLI::App* cmd, Options& o) {
-  cmd->add_option("--seed", o.seed, "random seed")->capture_default_str();
-  cmd->add_option("--triangles", o.triangles, "target triangle count")->capture_default_str();
-  cmd->add_option("--geodes", o.geodes, "target geode count (default: 20000 plant, 1000 monument)");
+  cmd->add_option("--seed", o.seed, "random seed")->check(kUnsigned)->capture_default_str();
+  cmd->add_option("--triangles", o.triangles, "target triangle count")
+      ->check(kUnsigned)
+      ->capture_default_str();
+  cmd->add_option("--geodes", o.geodes, "target geode count (default: 20000 plant, 1000 monument)")
+      ->check(kUnsigned);
 }
 
 osg::ref_ptr<osg::Node> generate(const std::string& kind, const Options& o) {
@@ -64,23 +75,41 @@ osg::ref_ptr<osg::Node> generate(const std::string& kind, const Options& o) {
 osg::ref_ptr<osg::Node> readInput(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw dmmr::Error(dmmr::fileError(path, "cannot open input (no such file)"));
-  osg::ref_ptr<osg::Node> n = osgDB::readRefNodeFile(path);
-  if (!n) throw dmmr::Error(dmmr::fileError(path, "cannot read input as a model"));
-  return n;
+    throw dmmr::Error(
+        dmmr::fileError(path, "cannot open input (no such file, or not a regular file)"));
+  auto* reg = osgDB::Registry::instance();
+  osgDB::ReaderWriter::ReadResult r = reg->readNode(path, reg->getOptions());
+  if (!r.validNode()) {
+    std::string why = r.message().empty() ? "" : " (" + r.message() + ")";
+    throw dmmr::Error(dmmr::fileError(path, "cannot read input as a model" + why));
+  }
+  return r.getNode();
+}
+
+// Fails before any long generation when an output could not be created.
+void checkOutput(const std::string& path, bool scene) {
+  std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+    throw dmmr::Error(dmmr::fileError(path, "cannot write: no such folder " + dir.string()));
+  if (!scene) return;
+  std::string ext = osgDB::getLowerCaseFileExtension(path);
+  if (ext.empty())
+    throw dmmr::Error(dmmr::fileError(path, "output needs an extension OSG can write, e.g. .osgb"));
+  if (!osgDB::Registry::instance()->getReaderWriterForExtension(ext))
+    throw dmmr::Error(dmmr::fileError(path, "no OSG writer for ." + ext + " files"));
 }
 
 // Writes through a temporary file beside OUT (same extension, so the same OSG
 // writer), then renames, so readers never see a partial scene.
 void writeSceneAtomic(osg::Node& node, const std::string& out) {
-  std::string ext = osgDB::getFileExtension(out);
-  if (ext.empty())
-    throw dmmr::Error(dmmr::fileError(out, "output needs an extension OSG can write, e.g. .osgb"));
-  std::string tmp = out + ".tmp" + std::to_string(::getpid()) + "." + ext;
-  if (!osgDB::writeNodeFile(node, tmp)) {
+  std::string tmp = out + ".tmp" + std::to_string(::getpid()) + "." + osgDB::getFileExtension(out);
+  auto* reg = osgDB::Registry::instance();
+  osgDB::ReaderWriter::WriteResult r = reg->writeNode(node, tmp, reg->getOptions());
+  if (!r.success()) {
     std::remove(tmp.c_str());
-    throw dmmr::Error(dmmr::fileError(
-        out, "cannot write scene (unwritable folder or no writer for ." + ext + ")"));
+    std::string why = r.message().empty() ? "" : " (" + r.message() + ")";
+    throw dmmr::Error(dmmr::fileError(out, "cannot write scene" + why));
   }
   std::error_code ec;
   std::filesystem::rename(tmp, out, ec);
@@ -95,6 +124,9 @@ void run(const std::string& command, Options& o) {
   if (o.frames == 0) throw dmmr::Error("--frames must be at least 1");
   if (o.triangles == 0) throw dmmr::Error("--triangles must be at least 1");
   if (o.geodesGiven && o.geodes == 0) throw dmmr::Error("--geodes must be at least 1");
+  if (o.walkthrough.empty()) o.walkthrough = osgDB::getNameLessExtension(o.output) + ".path";
+  checkOutput(o.output, true);
+  checkOutput(o.walkthrough, false);
   bool orbit = false;
   osg::ref_ptr<osg::Node> scene;
   if (command == "replicate") {
@@ -112,7 +144,6 @@ void run(const std::string& command, Options& o) {
     scene = generate(command, o);
   }
   if (!o.path.empty()) orbit = o.path == "orbit";
-  if (o.walkthrough.empty()) o.walkthrough = osgDB::getNameLessExtension(o.output) + ".path";
 
   dmmr::Walkthrough w = sg::makeWalkthrough(sg::sceneBounds(*scene), o.frames,
                                             orbit ? sg::PathKind::Orbit : sg::PathKind::FlyThrough);

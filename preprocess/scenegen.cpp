@@ -578,7 +578,6 @@ class SceneBuilder {
     parent->addChild(g.get());
     leaves.push_back({g, std::move(shape)});
   }
-  const Palette& palette() const { return pal_; }
   std::vector<Leaf> leaves;
 
  private:

@@ -43,10 +43,14 @@ struct PlantParams {
 // (MatrixTransform) / unit (MatrixTransform, translated and rotated about Z) /
 // cluster / Geode.
 // Exactly `geodes` geodes are made, unless the triangle budget cannot give
-// every geode its coarsest tessellation (about 25 triangles per geode); the
-// geode count is then lowered until it can. Tessellation (ring segments, ring
-// counts along lengths, elbow steps) is scaled by one global detail factor
-// chosen so the total triangle count lands near `triangles`.
+// every geode its coarsest tessellation (about 45 triangles per geode on
+// average; 4-sided pipes); the geode count is then lowered until it can.
+// Tessellation (ring segments, rings along lengths, elbow and dome steps) is
+// scaled by one global detail factor chosen so the total triangle count lands
+// near `triangles` (measured: within 1% from 50k to 20M). Structure (floors,
+// walls, beams, stairs) takes at most half of each bay's geodes; with fewer
+// than ~50 geodes the plant is all floors and the target may not be reached.
+// Cost: ~0.3 s and 110 MB for 1M triangles, ~1 s and 330 MB for 10M.
 // Throws dmmr::Error when triangles or geodes is 0 or triangles > 2e9.
 osg::ref_ptr<osg::Node> makePlant(const PlantParams& params);
 
