@@ -232,6 +232,7 @@ class RenderStage {
     st.bytes_raw = rgb.size();
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
+    out.drawn = v.visible;  // lets the server weigh the next frames by what shows
     return out;
   }
 

@@ -67,6 +67,8 @@ std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
     w.u64(v);
   w.u64(s.data.size());
   w.array(s.data.data(), s.data.size());
+  w.u32(uint32_t(s.drawn.size()));
+  w.array(s.drawn.data(), s.drawn.size());
   return std::move(w.bytes());
 }
 
@@ -88,6 +90,7 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
                       &t.bytes_sent})
     *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
+  r.array(&s.drawn, r.u32("drawn count"), "drawn objects");
   r.finish();
   return s;
 }

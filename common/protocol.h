@@ -47,6 +47,7 @@ struct SubFrame {
   uint64_t raw_size = 0;
   std::vector<uint8_t> data;
   ClientStats stats;
+  std::vector<uint32_t> drawn;  // the objects the render stage drew (ascending)
   friend bool operator==(const SubFrame&, const SubFrame&) = default;
 };
 

@@ -36,6 +36,10 @@ int main(int argc, char** argv) {
   app.add_option("--second-pass-min", c.visibility.second_pass_min,
                  "objects newly passing that trigger a second depth-and-query pass "
                  "(large: never)");
+  std::string weights = "visible";
+  app.add_option("--weights", weights,
+                 "division weights: visible (drawn lately) or frustum (all triangles)")
+      ->check(CLI::IsMember({"visible", "frustum"}));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')
@@ -64,6 +68,7 @@ int main(int argc, char** argv) {
   c.visibility_context = {dmmr::parseBackend(backend), visDevice};
   c.render_context = {dmmr::parseBackend(backend), renderDevice};
   c.visibility.enabled = visibility == "on";
+  s.visible_weights = weights == "visible";
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");

@@ -6,9 +6,31 @@
 
 namespace dmmr {
 
-FramePlanner::FramePlanner(const Scene& scene) : scene_(scene) {
+FramePlanner::FramePlanner(const Scene& scene)
+    : scene_(scene), drawn_in_(new std::atomic<uint32_t>[scene.objects.size()]) {
   boxes_.reserve(scene.objects.size());
-  for (const ObjectBounds& o : scene.objects) boxes_.push_back({tightBox(o), o.weight});
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    boxes_.push_back({tightBox(scene.objects[i]), scene.objects[i].weight});
+    drawn_in_[i].store(0, std::memory_order_relaxed);
+  }
+}
+
+void FramePlanner::reportDrawn(uint32_t frame, const std::vector<uint32_t>& objects) {
+  for (uint32_t o : objects)
+    if (o < boxes_.size()) {
+      uint32_t v = frame + 1, old = drawn_in_[o].load(std::memory_order_relaxed);
+      while (old < v && !drawn_in_[o].compare_exchange_weak(old, v, std::memory_order_relaxed)) {
+      }
+    }
+  feedback_.store(true, std::memory_order_relaxed);
+}
+
+uint64_t FramePlanner::weightOf(uint32_t o) const {
+  uint64_t tris = boxes_[o].weight;
+  if (!feedback_.load(std::memory_order_relaxed)) return tris;
+  uint32_t seen = drawn_in_[o].load(std::memory_order_relaxed);  // frame + 1, or 0
+  bool recent = seen != 0 && seen + kSeenFrames > frame_;
+  return recent ? tris : std::min(tris, kHiddenWeight);
 }
 
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
@@ -25,7 +47,7 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
     parts[t].reserve(end - begin);
     Footprint f;
     for (size_t k = begin; k < end; ++k)
-      if (project(boxes_[visible[k]].box, boxes_[visible[k]].weight, visible[k], &f))
+      if (project(boxes_[visible[k]].box, weightOf(visible[k]), visible[k], &f))
         parts[t].push_back(f);
   };
   std::vector<std::thread> pool;

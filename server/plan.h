@@ -2,6 +2,8 @@
 // division into one region and object list per client.
 #pragma once
 
+#include <atomic>
+#include <memory>
 #include <vector>
 
 #include "cull.h"
@@ -27,6 +29,18 @@ class FramePlanner {
   explicit FramePlanner(const Scene& scene);
   FramePlan plan(const Camera& camera, int width, int height, int clients) const;
 
+  // Division weights from what the clients drew: an object drawn in one of
+  // the last kSeenFrames frames weighs its triangles; one not drawn lately
+  // (hidden by occlusion culling) weighs what testing it costs, at most
+  // kHiddenWeight. Before any feedback every object weighs its triangles.
+  // Weights only move the split lines: every object still goes to every
+  // region it overlaps, so frames stay exact. Thread-safe: the assembler
+  // reports while the planner plans.
+  void reportDrawn(uint32_t frame, const std::vector<uint32_t>& objects);
+  void planningFrame(uint32_t frame) { frame_ = frame; }
+  static constexpr uint32_t kSeenFrames = 8;
+  static constexpr uint64_t kHiddenWeight = 1;
+
  private:
   // Footprints of the `visible` objects, in the same order (those covering no
   // pixel left out); computed on up to 8 threads for large lists.
@@ -36,8 +50,14 @@ class FramePlanner {
     Box3d box;
     uint64_t weight;
   };
+  uint64_t weightOf(uint32_t object) const;
   const Scene& scene_;
   std::vector<Projected> boxes_;
+  // Per object: 1 + the last frame a client drew it (0: never). Relaxed
+  // atomics: these are hints, read while the assembler writes them.
+  std::unique_ptr<std::atomic<uint32_t>[]> drawn_in_;
+  std::atomic<bool> feedback_{false};
+  uint32_t frame_ = 0;
 };
 
 // One-off convenience: builds a planner and plans one frame.

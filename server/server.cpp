@@ -39,8 +39,10 @@ struct FrameRecord {
 
 class Assembler {
  public:
-  Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames)
-      : comm_(comm), opts_(opts), clients_(clients), frames_(frames) {
+  // `planner`, when given, hears which objects the clients drew.
+  Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames,
+            FramePlanner* planner)
+      : comm_(comm), opts_(opts), clients_(clients), frames_(frames), planner_(planner) {
     csv_ =
         "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
         "objects_in_frustum,triangles_in_frustum";
@@ -128,6 +130,7 @@ class Assembler {
       }
     }
     rec->clients[size_t(rank - 1)] = sf.stats;
+    if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     if (++rec->received == clients_) finishFrame(sf.frame, *rec);
   }
@@ -169,6 +172,7 @@ class Assembler {
   const ServerOptions& opts_;
   const int clients_;
   const size_t frames_;
+  FramePlanner* planner_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::map<uint32_t, FrameRecord> pending_;
@@ -231,13 +235,15 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   const ViewOptions& v = opts.view;
   double near = v.near > 0 ? v.near : defaultNear(scene);
   FramePlanner planner(scene);
-  Assembler assembler(comm, opts, clients, path.points.size());
+  Assembler assembler(comm, opts, clients, path.points.size(),
+                      opts.visible_weights ? &planner : nullptr);
   std::thread assembling([&] { assembler.run(); });
   for (uint32_t f = 0; f < path.points.size(); ++f) {
     if (!assembler.waitForRoom(f)) break;
     FrameRecord rec;
     rec.started = Clock::now();
     Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
+    planner.planningFrame(f);
     FramePlan plan = planner.plan(cam, v.width, v.height, clients);
     rec.cull_ms = plan.cull_ms;
     rec.divide_ms = plan.divide_ms;

@@ -20,6 +20,9 @@ struct ServerOptions {
   // visibility and the render stage busy on frames i, i-1, i-2; 1 serialises.
   int in_flight = 3;
   bool progress = true;
+  // Weigh objects for the division by what the clients drew lately (see
+  // FramePlanner::reportDrawn), rather than by all triangles in the frustum.
+  bool visible_weights = true;
 };
 
 // Returns the process exit status; every message it prints names the rank

@@ -161,5 +161,42 @@ TEST(PlanFrame, OneClientGetsTheWholeFrameAndEveryVisibleObject) {
   EXPECT_EQ(plan.objects_in_frustum, scene.objects.size());
 }
 
+TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
+  Rng rng(35);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera camera;  // the top-down view of the test above: every object in view
+  camera.eye = {18, 200, -18};
+  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
+  camera.fovy_deg = 40;
+  FramePlanner planner(scene);
+  planner.planningFrame(0);
+  FramePlan before = planner.plan(camera, 256, 256, 2);
+  uint64_t all = 0;
+  for (const Region& r : before.regions) all += r.weight;
+  EXPECT_GE(all, scene.manifest.triangles);  // no feedback yet: triangles
+  // Clients report drawing only object 0: every other object now weighs at
+  // most kHiddenWeight, object 0 its triangles.
+  planner.reportDrawn(0, {0});
+  planner.planningFrame(1);
+  FramePlan after = planner.plan(camera, 256, 256, 2);
+  uint64_t heavy = scene.objects[0].weight, total = 0;
+  for (const Region& r : after.regions) total += r.weight;
+  EXPECT_LE(total, 2 * (heavy + FramePlanner::kHiddenWeight * scene.objects.size()));
+  EXPECT_LT(total, all);
+  // Regions still hold every object they overlap: weights move split lines,
+  // never membership.
+  std::vector<uint32_t> held;
+  for (const Region& r : after.regions) held.insert(held.end(), r.objects.begin(), r.objects.end());
+  std::sort(held.begin(), held.end());
+  held.erase(std::unique(held.begin(), held.end()), held.end());
+  EXPECT_EQ(held.size(), scene.objects.size());
+  // Feedback older than kSeenFrames no longer counts as drawn.
+  planner.planningFrame(FramePlanner::kSeenFrames + 1);
+  FramePlan stale = planner.plan(camera, 256, 256, 2);
+  uint64_t staleTotal = 0;
+  for (const Region& r : stale.regions) staleTotal += r.weight;
+  EXPECT_LE(staleTotal, 2 * FramePlanner::kHiddenWeight * scene.objects.size());
+}
+
 }  // namespace
 }  // namespace dmmr
