@@ -63,14 +63,16 @@ struct SmallScene {
                         " --scene " + scene + " --walkthrough " + path + " --out " + reference),
               0);
   }
+  // Renders the walkthrough of `sceneDir` (default: this scene) with mpirun.
   std::string render(int clients, const std::string& out, const std::string& extra = "",
-                     int* status = nullptr) {
+                     int* status = nullptr, const std::string& sceneDir = "") {
     int s = 0;
-    std::string log = test::runCapture(
-        "timeout 120 " + test::mpirun(clients + 1) + " " + test::tool("dmmr-render") +
-            " --no-progress --width 160 --height 120 --scene " + scene + " --walkthrough " + path +
-            " --out " + out + " " + extra,
-        &s);
+    std::string log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+                                           test::tool("dmmr-render") +
+                                           " --no-progress --width 160 --height 120 --scene " +
+                                           (sceneDir.empty() ? scene : sceneDir) +
+                                           " --walkthrough " + path + " --out " + out + " " + extra,
+                                       &s);
     if (status)
       *status = s;
     else
@@ -78,6 +80,15 @@ struct SmallScene {
     return log;
   }
 };
+
+// Flips the bits of one byte, so the file changes whatever the byte held.
+void flipByte(const std::string& file, std::streamoff offset) {
+  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(offset);
+  char c = char(f.get() ^ 0x5a);
+  f.seekp(offset);
+  f.put(c);
+}
 
 SmallScene& smallScene() {
   static SmallScene* s = new SmallScene;  // built once per test binary
@@ -134,17 +145,9 @@ TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
   SmallScene& s = smallScene();
   std::string bad = s.dir / "badscene";
   fs::copy(s.scene, bad, fs::copy_options::recursive);
-  {
-    std::fstream f(bad + "/skeleton.bin", std::ios::in | std::ios::out | std::ios::binary);
-    f.seekp(40);
-    f.put('\x55');
-  }
+  flipByte(bad + "/skeleton.bin", 40);
   int status = 0;
-  std::string log =
-      test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
-                           " --no-progress --width 64 --height 48 --scene " + bad +
-                           " --walkthrough " + s.path + " --out " + (s.dir / "bad"),
-                       &status);
+  std::string log = s.render(2, s.dir / "bad", "", &status, bad);
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank hung";
   size_t first = log.find("skeleton.bin");
@@ -160,19 +163,9 @@ TEST(DistributedErrors, StageFailingMidRunEndsEveryRankWithItsMessage) {
   fs::copy(s.scene, bad, fs::copy_options::recursive);
   // Geometry files that no longer match the manifest's checksums: the
   // clients find out only when a stage first needs one, mid-run.
-  for (auto& e : fs::directory_iterator(bad + "/geometry")) {
-    std::fstream f(e.path(), std::ios::in | std::ios::out | std::ios::binary);
-    f.seekg(30);
-    char c = char(f.get() ^ 0x5a);  // flip bits: a changed byte whatever it held
-    f.seekp(30);
-    f.put(c);
-  }
+  for (auto& e : fs::directory_iterator(bad + "/geometry")) flipByte(e.path(), 30);
   int status = 0;
-  std::string log =
-      test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
-                           " --no-progress --width 64 --height 48 --scene " + bad +
-                           " --walkthrough " + s.path + " --out " + (s.dir / "badgeo"),
-                       &status);
+  std::string log = s.render(2, s.dir / "badgeo", "", &status, bad);
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank or thread hung";
   EXPECT_NE(log.find("checksum differs from the manifest"), std::string::npos) << log;
