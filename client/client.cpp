@@ -1,15 +1,20 @@
 #include "client.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
+#include <cstring>
 #include <future>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <thread>
 
 #include "draw.h"
 #include "error.h"
-#include "mesh_provider.h"
+#include "gpu_cache.h"
+#include "host_cache.h"
 #include "protocol.h"
 #include "queue.h"
 #include "scene.h"
@@ -31,26 +36,63 @@ struct VisibleJob {
   Clock::time_point ready;  // when the visibility stage finished it
 };
 
-// One GL context with the shared drawing code and its meshes.
+// Test hook: DMMR_INJECT_FAULT=STAGE:FRAME (visibility or render) makes that
+// stage fail at that frame, so tests reach the mid-run failure path.
+void injectFault(const char* stage, uint32_t frame) {
+  const char* spec = std::getenv("DMMR_INJECT_FAULT");
+  if (!spec) return;
+  size_t n = std::strlen(stage);
+  if (std::strncmp(spec, stage, n) == 0 && spec[n] == ':' &&
+      std::strtoul(spec + n + 1, nullptr, 10) == frame)
+    throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(frame));
+}
+
+void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheStats& after) {
+  st.gpu_hits += after.hits - before.hits;
+  st.gpu_misses += after.misses - before.misses;
+  st.uncached += after.uncached - before.uncached;
+  st.gpu_resident += after.resident;
+}
+
+// One GL context with the shared drawing code and its GPU cache level.
 struct GlStage {
-  GlStage(const Scene& scene, const ContextOptions& ctx, const ViewOptions& view)
+  GlStage(const Scene& scene, HostCache& host, const ContextOptions& ctx, const ViewOptions& view,
+          uint64_t gpu_budget)
       : context(createContext(ctx)),
         renderer(context->gl(), view.width, view.height),
-        meshes(scene, renderer) {}
+        backend(renderer),
+        meshes(scene, host, backend, gpu_budget) {}
   std::unique_ptr<GlContext> context;
   Renderer renderer;
-  KeepAllMeshProvider meshes;
+  RendererBackend backend;
+  GpuCache meshes;
 };
 
 class VisibilityStage {
  public:
-  VisibilityStage(const Scene& scene, const ClientOptions& opts)
+  VisibilityStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
       : scene_(scene),
+        host_(host),
         opts_(opts.visibility),
-        gl_(scene, opts.visibility_context, opts.view),
+        gl_(scene, host, opts.visibility_context, opts.view, opts.cache.gpu_budget),
         marked_until_(scene.objects.size(), 0) {}
 
   VisibleJob run(FrameJob job) {
+    injectFault("visibility", job.frame);
+    GpuCacheStats before = gl_.meshes.stats();
+    VisibleJob out = decide(std::move(job));
+    addGpuStats(out.stats, before, gl_.meshes.stats());
+    // Prefetch what the render stage will draw (it is a frame behind), so
+    // its disk reads overlap this stage's and that stage's work.
+    std::vector<uint32_t> geometries;
+    geometries.reserve(out.visible.size());
+    for (uint32_t o : out.visible) geometries.push_back(scene_.objects[o].geometry);
+    host_.prefetch(geometries, /*urgent=*/true);
+    return out;
+  }
+
+ private:
+  VisibleJob decide(FrameJob job) {
     VisibleJob out;
     out.stats.objects = job.objects.size();
     if (!opts_.enabled) {  // no culling: the render stage draws the whole list
@@ -67,10 +109,7 @@ class VisibilityStage {
         planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
-    for (uint32_t o : plan.occluders) {
-      const GpuMesh& mesh = gl_.meshes.acquire(scene_.objects[o].geometry);
-      r.drawDepth(mesh, scene_.objects[o].transform, opts_.occluder_lod);
-    }
+    for (uint32_t o : plan.occluders) drawDepth(o);
     // Queries: every object not marked, occluders included (an occluder hidden
     // by other occluders need not be drawn; one that shows passes against its
     // own depth, since its widened box lies in front of it). Hierarchically:
@@ -97,9 +136,7 @@ class VisibilityStage {
           .push_back(o);
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       std::sort(fresh.begin(), fresh.end());
-      for (uint32_t o : fresh)
-        r.drawDepth(gl_.meshes.acquire(scene_.objects[o].geometry), scene_.objects[o].transform,
-                    opts_.occluder_lod);
+      for (uint32_t o : fresh) drawDepth(o);
       passed = queryHierarchically(fresh, job.camera, &tally);
       passed.insert(passed.end(), kept.begin(), kept.end());
     }
@@ -120,7 +157,12 @@ class VisibilityStage {
     return out;
   }
 
- private:
+  void drawDepth(uint32_t object) {
+    const ObjectBounds& o = scene_.objects[object];
+    if (const GpuMesh* mesh = gl_.meshes.acquire(o.geometry))  // null: skipped, counted
+      gl_.renderer.drawDepth(*mesh, o.transform, opts_.occluder_lod);
+  }
+
   struct QueryTally {
     size_t issued = 0;
     double retrieve_ms = 0;
@@ -184,6 +226,7 @@ class VisibilityStage {
   }
 
   const Scene& scene_;
+  HostCache& host_;
   VisibilityOptions opts_;
   GlStage gl_;
   std::vector<uint32_t> previous_;      // last frame's visible list (ascending)
@@ -193,11 +236,17 @@ class VisibilityStage {
 
 class RenderStage {
  public:
-  RenderStage(const Scene& scene, const ClientOptions& opts)
-      : scene_(scene), codec_(opts.codec), gl_(scene, opts.render_context, opts.view) {}
+  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
+      : scene_(scene),
+        host_(host),
+        codec_(opts.codec),
+        gl_(scene, host, opts.render_context, opts.view, opts.cache.gpu_budget),
+        host_before_(host.stats()) {}
 
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
+    injectFault("render", job.frame);
+    GpuCacheStats gpu_before = gl_.meshes.stats();
     SubFrame out;
     out.frame = job.frame;
     out.region = job.region;
@@ -210,12 +259,24 @@ class RenderStage {
     for (uint32_t index : v.visible) {  // ascending, as the reference draws
       const ObjectBounds& o = scene_.objects[index];
       auto tl = Clock::now();
-      const GpuMesh& mesh = gl_.meshes.acquire(o.geometry);
+      const GpuMesh* mesh = gl_.meshes.acquire(o.geometry);
       st.load_ms += msSince(tl);
-      r.draw(mesh, o.transform, gl_.meshes.textures());
-      st.triangles += mesh.triangles;
+      if (!mesh) continue;  // unreadable geometry: skipped, counted
+      r.draw(*mesh, o.transform, gl_.meshes.textures());
+      st.triangles += mesh->triangles;
     }
     r.finish();
+    addGpuStats(st, gpu_before, gl_.meshes.stats());
+    // The host levels are shared by both stages; each sub-frame reports
+    // their activity since the previous one.
+    HostCacheStats h = host_.stats();
+    st.ram_hits = h.hits - host_before_.hits;
+    st.ram_misses = h.misses - host_before_.misses;
+    st.disk_bytes = h.disk_bytes - host_before_.disk_bytes;
+    st.uncached += h.uncached - host_before_.uncached;
+    st.skipped = h.skipped - host_before_.skipped;
+    st.ram_resident = h.resident;
+    host_before_ = h;
     st.render_ms = msSince(t0) - st.load_ms;
     auto tr = Clock::now();
     std::vector<uint8_t> rgba, rgb;
@@ -240,8 +301,10 @@ class RenderStage {
 
  private:
   const Scene& scene_;
+  HostCache& host_;
   Codec codec_;
   GlStage gl_;
+  HostCacheStats host_before_;
   double last_send_ms_ = 0;
 };
 
@@ -282,6 +345,18 @@ std::thread startStage(std::function<std::unique_ptr<Stage>()> make, Loop loop,
   });
 }
 
+// Objects that entered the region since the last job: asked for ahead of
+// the visibility and render stages, into free RAM only.
+void prefetchEntering(const Scene& scene, HostCache& host, const std::vector<uint32_t>& objects,
+                      std::vector<uint32_t>* region) {
+  std::vector<uint32_t> entering, geometries;
+  std::set_difference(objects.begin(), objects.end(), region->begin(), region->end(),
+                      std::back_inserter(entering));
+  for (uint32_t o : entering) geometries.push_back(scene.objects[o].geometry);
+  host.prefetch(geometries, /*urgent=*/false);
+  *region = objects;
+}
+
 }  // namespace
 
 int runClient(Comm& comm, const ClientOptions& opts) {
@@ -291,8 +366,11 @@ int runClient(Comm& comm, const ClientOptions& opts) {
 
   std::string problem;
   Scene scene;
+  std::unique_ptr<HostCache> host;
   try {
     scene = loadScene(opts.scene, /*with_skeleton=*/false);
+    host = std::make_unique<HostCache>(scene,
+                                       HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir});
   } catch (const std::exception& e) {
     problem = e.what();
   }
@@ -331,9 +409,10 @@ int runClient(Comm& comm, const ClientOptions& opts) {
   std::thread visThread, renderThread;
   if (problem.empty()) {
     visThread = startStage<VisibilityStage>(
-        [&] { return std::make_unique<VisibilityStage>(scene, opts); }, visLoop, &visReady);
-    renderThread = startStage<RenderStage>(
-        [&] { return std::make_unique<RenderStage>(scene, opts); }, renderLoop, &renderReady);
+        [&] { return std::make_unique<VisibilityStage>(scene, *host, opts); }, visLoop, &visReady);
+    renderThread =
+        startStage<RenderStage>([&] { return std::make_unique<RenderStage>(scene, *host, opts); },
+                                renderLoop, &renderReady);
     for (auto* ready : {&visReady, &renderReady}) {
       std::string p = ready->get_future().get();
       if (!p.empty() && problem.empty()) problem = p;
@@ -344,12 +423,15 @@ int runClient(Comm& comm, const ClientOptions& opts) {
   comm.broadcast(0, &go);
 
   if (go) {
+    std::vector<uint32_t> region;  // the previous job's objects
     for (;;) {
       Message m = comm.recv(0);
       if (m.tag == Tag::Shutdown) break;
       if (m.tag != Tag::Job) continue;
       try {
-        jobs.push(decodeJob(m.bytes));
+        FrameJob job = decodeJob(m.bytes);
+        prefetchEntering(scene, *host, job.objects, &region);
+        jobs.push(std::move(job));
       } catch (const std::exception& e) {
         failure.fail(e.what());
       }

@@ -7,6 +7,7 @@
 
 #include <string>
 
+#include "budget.h"
 #include "camera.h"
 #include "compress.h"
 #include "gl_context.h"
@@ -22,6 +23,7 @@ struct ClientOptions {
   ContextOptions render_context;      // context 2
   VisibilityOptions visibility;
   Codec codec = Codec::LZ4;
+  CacheOptions cache;
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.

@@ -8,8 +8,9 @@
 #include "atomic_file.h"
 #include "draw.h"
 #include "error.h"
+#include "gpu_cache.h"
+#include "host_cache.h"
 #include "image.h"
-#include "mesh_provider.h"
 #include "scene.h"
 #include "walkthrough.h"
 
@@ -38,11 +39,12 @@ struct ExactVisible {
 };
 
 // Objects owning at least one pixel of the frame, from an object-id render.
-ExactVisible exactVisible(const Scene& scene, MeshProvider& meshes, Renderer& r, const Camera& cam,
+ExactVisible exactVisible(const Scene& scene, GpuCache& meshes, Renderer& r, const Camera& cam,
                           const Rect& full) {
   r.beginIdFrame(cam, full);
   for (uint32_t i = 0; i < scene.objects.size(); ++i)
-    r.drawId(meshes.acquire(scene.objects[i].geometry), scene.objects[i].transform, i);
+    if (const GpuMesh* mesh = meshes.acquire(scene.objects[i].geometry))
+      r.drawId(*mesh, scene.objects[i].transform, i);
   std::vector<uint8_t> px;
   r.readPixels(full, &px);
   std::vector<uint8_t> seen(scene.objects.size(), 0);
@@ -67,8 +69,11 @@ void runReference(const ReferenceOptions& opts) {
   auto ctx = createContext(opts.context);
   Renderer renderer(ctx->gl(), opts.view.width, opts.view.height);
 
-  // Every geometry is uploaded once, on first use; instances share it.
-  KeepAllMeshProvider meshes(scene, renderer);
+  // With unlimited budgets every geometry is uploaded once, on first use;
+  // instances share it.
+  HostCache host(scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir});
+  RendererBackend backend(renderer);
+  GpuCache meshes(scene, host, backend, opts.cache.gpu_budget);
 
   std::string csv = "frame,frame_ms,draw_ms,objects,triangles";
   csv += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles\n" : "\n";
@@ -82,9 +87,10 @@ void runReference(const ReferenceOptions& opts) {
     renderer.beginFrame(cam, full);
     uint64_t tris = 0;
     for (const ObjectBounds& o : scene.objects) {  // ascending object index
-      const GpuMesh& mesh = meshes.acquire(o.geometry);
-      renderer.draw(mesh, o.transform, meshes.textures());
-      tris += mesh.triangles;
+      const GpuMesh* mesh = meshes.acquire(o.geometry);
+      if (!mesh) continue;  // unreadable geometry: warned about, skipped
+      renderer.draw(*mesh, o.transform, meshes.textures());
+      tris += mesh->triangles;
     }
     renderer.readPixels(full, &pixels);
     double draw_ms = msSince(t0);

@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "budget.h"
 #include "camera.h"
 #include "gl_context.h"
 
@@ -22,9 +23,14 @@ struct ReferenceOptions {
   // exactly visible set: objects owning at least one pixel, and their
   // triangles (the lower bound any culling can reach).
   bool exact_visible = false;
+  // The same geometry cache as the clients' (one GPU level); unlimited by
+  // default, so every geometry is uploaded once and kept.
+  CacheOptions cache;
 };
 
-// Throws Error on bad input; frames already written stay on disk.
+// Throws Error on bad input; frames already written stay on disk. An
+// unreadable geometry file is warned about and its objects skipped, as the
+// clients do, so that both render the same frames.
 void runReference(const ReferenceOptions& opts);
 
 }  // namespace dmmr

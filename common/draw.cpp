@@ -214,7 +214,19 @@ GpuMesh Renderer::upload(const GeometryData& g) {
   m.bytes += all.size() * 4;
   gl_.BindVertexArray(0);
   gl_.check("geometry upload");
+  DMMR_CHECK(m.bytes == gpuBytes(g));
   return m;
+}
+
+uint64_t gpuBytes(const GeometryData& g) {
+  return (g.positions.size() + g.normals.size() + g.texcoords.size() + g.indices.size() +
+          g.lod_indices.size()) *
+             4 +
+         g.colors.size();
+}
+
+uint64_t gpuBytes(const TextureData& t) {
+  return uint64_t(t.width) * t.height * 4 * 4 / 3 + 4;
 }
 
 void Renderer::release(GpuMesh& m) {

@@ -30,6 +30,12 @@ struct GpuMesh {
   uint64_t triangles = 0;
 };
 
+// GPU memory Renderer::upload takes for `g` (its buffers), known before the
+// upload so a cache can make room first.
+uint64_t gpuBytes(const GeometryData& g);
+// ... and uploadTexture for `t` (RGBA8 with its mipmap chain, at most 4/3).
+uint64_t gpuBytes(const TextureData& t);
+
 struct Rgb {
   float r = 0.2f, g = 0.22f, b = 0.26f;
 };

@@ -62,8 +62,9 @@ std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
   for (double v : {t.prepare_ms, t.retrieve_ms, t.pass_ms, t.load_ms, t.render_ms, t.readback_ms,
                    t.compress_ms, t.send_ms})
     w.f64(v);
-  for (uint64_t v :
-       {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw, t.bytes_sent})
+  for (uint64_t v : {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw,
+                     t.bytes_sent, t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes,
+                     t.uncached, t.skipped, t.gpu_resident, t.ram_resident})
     w.u64(v);
   w.u64(s.data.size());
   w.array(s.data.data(), s.data.size());
@@ -87,7 +88,8 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
                     &t.readback_ms, &t.compress_ms, &t.send_ms})
     *v = r.f64("stats");
   for (uint64_t* v : {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw,
-                      &t.bytes_sent})
+                      &t.bytes_sent, &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses,
+                      &t.disk_bytes, &t.uncached, &t.skipped, &t.gpu_resident, &t.ram_resident})
     *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
   r.array(&s.drawn, r.u32("drawn count"), "drawn objects");

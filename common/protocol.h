@@ -36,6 +36,11 @@ struct ClientStats {
   uint64_t occluders = 0, queried = 0, visible = 0;
   uint64_t triangles = 0;  // triangles drawn by the render stage
   uint64_t bytes_raw = 0, bytes_sent = 0;
+  // Geometry cache, this frame: hits and misses per level, bytes read from
+  // disk, meshes too large for a level (used uncached), objects skipped for
+  // unreadable geometry; and bytes resident now (GPU: both contexts).
+  uint64_t gpu_hits = 0, gpu_misses = 0, ram_hits = 0, ram_misses = 0, disk_bytes = 0;
+  uint64_t uncached = 0, skipped = 0, gpu_resident = 0, ram_resident = 0;
   friend bool operator==(const ClientStats&, const ClientStats&) = default;
 };
 

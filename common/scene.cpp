@@ -72,15 +72,28 @@ Scene loadScene(const std::string& dir, bool with_skeleton) {
   return s;
 }
 
-GeometryData loadGeometry(const Scene& scene, uint32_t index) {
-  std::string name = geometryFileName(index);
-  GeometryData g = decodeGeometry(readChecked(scene, name), scene.dir + "/" + name);
+std::vector<uint8_t> readGeometryFile(const Scene& scene, uint32_t index) {
+  return readChecked(scene, geometryFileName(index));
+}
+
+GeometryData decodeGeometryFile(const Scene& scene, uint32_t index,
+                                const std::vector<uint8_t>& bytes) {
+  std::string path = scene.dir + "/" + geometryFileName(index);
+  GeometryData g = decodeGeometry(bytes, path);
   for (const SubMesh& sm : g.submeshes)
     if (sm.texture >= 0 && uint64_t(sm.texture) >= scene.manifest.textures)
-      throw Error(fileError(scene.dir + "/" + name, "names texture " + std::to_string(sm.texture) +
-                                                        " of " +
-                                                        std::to_string(scene.manifest.textures)));
+      throw Error(fileError(path, "names texture " + std::to_string(sm.texture) + " of " +
+                                      std::to_string(scene.manifest.textures)));
   return g;
+}
+
+GeometryData loadGeometry(const Scene& scene, uint32_t index) {
+  return decodeGeometryFile(scene, index, readGeometryFile(scene, index));
+}
+
+uint64_t geometryFileBytes(const Scene& scene, uint32_t index) {
+  auto it = scene.manifest.files.find(geometryFileName(index));
+  return it == scene.manifest.files.end() ? 0 : it->second.bytes;
 }
 
 TextureData loadTexture(const Scene& scene, uint32_t index) {

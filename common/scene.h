@@ -28,6 +28,14 @@ Scene loadScene(const std::string& dir, bool with_skeleton = true);
 // Reads one geometry (or texture) file, checked against the manifest and the
 // scene's texture count. Throws Error naming the file.
 GeometryData loadGeometry(const Scene& scene, uint32_t index);
+// loadGeometry in two steps, for the cache: the file's bytes checked against
+// the manifest's size and CRC (what the host RAM level keeps), and their
+// decoding. Both throw Error naming the file.
+std::vector<uint8_t> readGeometryFile(const Scene& scene, uint32_t index);
+GeometryData decodeGeometryFile(const Scene& scene, uint32_t index,
+                                const std::vector<uint8_t>& bytes);
+// The geometry file's size as the manifest lists it (0 when it does not).
+uint64_t geometryFileBytes(const Scene& scene, uint32_t index);
 TextureData loadTexture(const Scene& scene, uint32_t index);
 
 // The near plane distance every renderer of a scene uses unless told

@@ -51,6 +51,8 @@ int main(int argc, char** argv) {
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
+  dmmr::addCacheOptions(app, c.cache);
+  app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
   bool quiet = rankEnv && std::atoi(rankEnv) != 0;

@@ -47,9 +47,11 @@ class Assembler {
         "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
         "objects_in_frustum,triangles_in_frustum";
     for (int k = 1; k <= clients; ++k)
-      for (const char* c : {"objects", "occluders", "queried", "visible", "triangles", "prepare_ms",
-                            "retrieve_ms", "pass_ms", "load_ms", "render_ms", "readback_ms",
-                            "compress_ms", "send_ms", "bytes_raw", "bytes_sent"})
+      for (const char* c :
+           {"objects",     "occluders",  "queried",    "visible",   "triangles",    "prepare_ms",
+            "retrieve_ms", "pass_ms",    "load_ms",    "render_ms", "readback_ms",  "compress_ms",
+            "send_ms",     "bytes_raw",  "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
+            "ram_misses",  "disk_bytes", "uncached",   "skipped",   "gpu_resident", "ram_resident"})
         csv_ += ",c" + std::to_string(k) + "_" + c;
     csv_ += "\n";
     last_done_ = Clock::now();
@@ -149,7 +151,9 @@ class Assembler {
       row << "," << c.objects << "," << c.occluders << "," << c.queried << "," << c.visible << ","
           << c.triangles << "," << c.prepare_ms << "," << c.retrieve_ms << "," << c.pass_ms << ","
           << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms << ","
-          << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent;
+          << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent << "," << c.gpu_hits << ","
+          << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
+          << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident;
     csv_ += row.str() + "\n";
     if (!opts_.stats.empty()) writeFileAtomic(opts_.stats, csv_);  // flushed frame by frame
     last_done_ = done;

@@ -9,6 +9,7 @@
 #include <osg/MatrixTransform>
 #include <osg/ShapeDrawable>
 #include <osgDB/WriteFile>
+#include <sstream>
 
 #include "compare.h"
 #include "preprocess.h"
@@ -65,10 +66,12 @@ struct SmallScene {
   }
   // Renders the walkthrough of `sceneDir` (default: this scene) with mpirun.
   std::string render(int clients, const std::string& out, const std::string& extra = "",
-                     int* status = nullptr, const std::string& sceneDir = "") {
+                     int* status = nullptr, const std::string& sceneDir = "",
+                     const std::string& env = "") {
     int s = 0;
-    std::string log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
-                                           test::tool("dmmr-render") +
+    std::string mpirun = test::mpirun(clients + 1);
+    if (!env.empty()) mpirun += " -x " + env;
+    std::string log = test::runCapture("timeout 120 " + mpirun + " " + test::tool("dmmr-render") +
                                            " --no-progress --width 160 --height 120 --scene " +
                                            (sceneDir.empty() ? scene : sceneDir) +
                                            " --walkthrough " + path + " --out " + out + " " + extra,
@@ -157,20 +160,72 @@ TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
   EXPECT_NE(log.find("server (rank 0)"), std::string::npos) << log;
 }
 
-TEST(DistributedErrors, StageFailingMidRunEndsEveryRankWithItsMessage) {
+class StageFailure : public testing::TestWithParam<std::string> {};
+
+TEST_P(StageFailure, MidRunEndsEveryRankWithItsMessage) {
   SmallScene& s = smallScene();
-  std::string bad = s.dir / "badgeometry";
-  fs::copy(s.scene, bad, fs::copy_options::recursive);
-  // Geometry files that no longer match the manifest's checksums: the
-  // clients find out only when a stage first needs one, mid-run.
-  for (auto& e : fs::directory_iterator(bad + "/geometry")) flipByte(e.path(), 30);
+  std::string stage = GetParam(), out = s.dir / ("fail-" + stage);
   int status = 0;
-  std::string log = s.render(2, s.dir / "badgeo", "", &status, bad);
+  std::string log = s.render(2, out, "", &status, "", "DMMR_INJECT_FAULT=" + stage + ":2");
   EXPECT_NE(status, 0);
   EXPECT_NE(status, 124) << "timed out: a rank or thread hung";
+  EXPECT_NE(log.find(stage + " stage: fault injected by DMMR_INJECT_FAULT at frame 2"),
+            std::string::npos)
+      << log;
+  // Whatever frames were assembled before the failure are whole and exact
+  // (which ones depends on how far the pipeline got).
+  if (fs::exists(out))
+    for (const auto& e : fs::directory_iterator(out)) {
+      std::string name = e.path().filename();
+      ASSERT_TRUE(name.starts_with("frame_") && name.ends_with(".png")) << "left behind: " << name;
+      EXPECT_EQ(compareImageFiles(s.reference + "/" + name, e.path()).differing_pixels, 0) << name;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Stages, StageFailure, testing::Values("visibility", "render"));
+
+TEST(DistributedErrors, CorruptGeometryIsSkippedAndCountedAndTheRunGoesOn) {
+  SmallScene& s = smallScene();
+  std::string bad = s.dir / "onebadgeometry";
+  fs::copy(s.scene, bad, fs::copy_options::recursive);
+  // One geometry file that no longer matches the manifest's checksum.
+  std::string victim = bad + "/geometry/000003.bin";
+  flipByte(victim, 30);
+  std::string ref = s.dir / "onebad-reference", out = s.dir / "onebad";
+  int status = 0;
+  std::string refLog = test::runCapture(test::tool("dmmr-reference") +
+                                            " --no-progress --width 160 --height 120 --scene " +
+                                            bad + " --walkthrough " + s.path + " --out " + ref,
+                                        &status);
+  EXPECT_EQ(status, 0) << refLog;
+  EXPECT_NE(refLog.find("000003.bin"), std::string::npos) << refLog;
+  std::string log = s.render(2, out, "--stats " + out + ".csv", &status, bad);
+  EXPECT_EQ(status, 0) << log;
+  EXPECT_NE(log.find("skipping geometry 3"), std::string::npos) << log;
   EXPECT_NE(log.find("checksum differs from the manifest"), std::string::npos) << log;
-  EXPECT_NE(log.find("stage: "), std::string::npos) << log;
-  EXPECT_NE(log.find("/geometry/"), std::string::npos) << log;
+  // Both skip the same objects, so the frames still match each other, and
+  // they differ from the intact scene's.
+  std::vector<FrameDiff> diffs = compareDirectories(ref, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  uint64_t changed = 0;
+  for (const FrameDiff& d : compareDirectories(s.reference, ref))
+    changed += d.diff.differing_pixels;
+  EXPECT_GT(changed, 0u) << "geometry 3 shows in no frame: the test proves nothing";
+  // Each client counts it once, in the skipped columns.
+  std::ifstream csv(out + ".csv");
+  std::string header, line;
+  std::getline(csv, header);
+  std::vector<std::string> cols;
+  for (std::stringstream hs(header); std::getline(hs, line, ',');) cols.push_back(line);
+  uint64_t skipped = 0;
+  while (std::getline(csv, line)) {
+    std::stringstream ls(line);
+    for (size_t c = 0; std::getline(ls, line, ','); ++c)
+      if (cols[c].ends_with("_skipped")) skipped += std::stoull(line);
+  }
+  EXPECT_GE(skipped, 1u);
+  EXPECT_LE(skipped, 2u);
 }
 
 TEST(DistributedErrors, MarkingObjectsVisibleForFramesIsStillExact) {

@@ -1,0 +1,157 @@
+// End to end: a replicated plant whose geometry is several times the clients'
+// RAM and GPU budgets renders, with mpirun and the visibility stage on, to
+// frames identical to the same run with unlimited budgets and to
+// dmmr-reference. Budgets come from a run config here, as a user sets them.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <osgDB/WriteFile>
+#include <sstream>
+
+#include "compare.h"
+#include "preprocess.h"
+#include "scene.h"
+#include "scenegen.h"
+#include "test_support.h"
+#include "walkthrough.h"
+
+namespace fs = std::filesystem;
+using namespace dmmr;
+using dmmr::test::TempDir;
+
+namespace {
+
+const std::string kSize = " --width 192 --height 144";
+
+struct ReplicatedPlant {
+  TempDir dir;
+  std::string scene, path, reference;
+  uint64_t geometry_bytes = 0;
+  ReplicatedPlant() {
+    scenegen::PlantParams params;
+    params.seed = 21;
+    params.triangles = 120'000;
+    params.geodes = 1500;
+    osg::ref_ptr<osg::Node> plant = scenegen::makePlant(params);
+    osg::ref_ptr<osg::Node> copies = scenegen::replicate(plant.get(), 3, 10.0);
+    std::string model = dir / "plants.osgb";
+    EXPECT_TRUE(osgDB::writeNodeFile(*copies, model));
+    PreprocessOptions o;
+    o.inputs = {model};
+    o.out = scene = dir / "scene";
+    o.progress = false;
+    preprocess(o);
+    geometry_bytes = loadScene(scene).manifest.geometry_bytes;
+    writeWalkthrough(path = dir / "fly.path",
+                     scenegen::makeWalkthrough(scenegen::sceneBounds(*copies), 12,
+                                               scenegen::PathKind::FlyThrough));
+    reference = dir / "reference";
+    int status = 0;
+    std::string log =
+        test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
+                             scene + " --walkthrough " + path + " --out " + reference,
+                         &status);
+    EXPECT_EQ(status, 0) << log;
+  }
+  // Runs 2 clients; returns the per-client sums of the stats CSV's columns
+  // ("c1_disk_bytes" -> sum over frames) and each column's maximum.
+  std::map<std::string, std::pair<uint64_t, uint64_t>> render(const std::string& out,
+                                                              const std::string& extra) {
+    int status = 0;
+    std::string log =
+        test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+                             " --no-progress" + kSize + " --scene " + scene + " --walkthrough " +
+                             path + " --out " + out + " --stats " + out + ".csv " + extra,
+                         &status);
+    EXPECT_NE(status, 124) << "timed out\n" << log;
+    EXPECT_EQ(status, 0) << log;
+    std::map<std::string, std::pair<uint64_t, uint64_t>> cols;
+    std::ifstream csv(out + ".csv");
+    std::string header, line, cell;
+    std::getline(csv, header);
+    std::vector<std::string> names;
+    for (std::stringstream hs(header); std::getline(hs, cell, ',');) names.push_back(cell);
+    while (std::getline(csv, line)) {
+      std::stringstream ls(line);
+      for (size_t c = 0; std::getline(ls, cell, ',') && c < names.size(); ++c) {
+        if (names[c].find("_ms") != std::string::npos) continue;
+        uint64_t v = std::stoull(cell);
+        auto& [sum, max] = cols[names[c]];
+        sum += v;
+        max = std::max(max, v);
+      }
+    }
+    return cols;
+  }
+};
+
+ReplicatedPlant& scene() {
+  static ReplicatedPlant* s = new ReplicatedPlant;
+  return *s;
+}
+
+}  // namespace
+
+class SmallBudgets : public testing::TestWithParam<bool> {};
+
+TEST_P(SmallBudgets, FramesEqualUnlimitedBudgets) {
+  ReplicatedPlant& s = scene();
+  bool ramdisk = GetParam();
+  uint64_t ram = s.geometry_bytes / 5, gpu = s.geometry_bytes / 12;
+  ASSERT_GT(ram, 64u << 10) << "scene too small for a meaningful test";
+  std::string name = ramdisk ? "ramdisk" : "small";
+  std::string config = s.dir / (name + ".toml");
+  std::ofstream(config) << "# budgets for the cache test\n"
+                        << "gpu-budget = \"" << gpu << "\"\n"
+                        << "ram-budget = \"" << ram << "\"\n";
+  std::string extra = "--config " + config;
+  TempDir ramdir;
+  if (ramdisk) extra += " --ram-dir " + ramdir.path();
+
+  auto unlimited = s.render(s.dir / (name + "-unlimited"), "");
+  auto limited = s.render(s.dir / name, extra);
+  std::vector<FrameDiff> diffs = compareDirectories(s.dir / (name + "-unlimited"), s.dir / name);
+  ASSERT_EQ(diffs.size(), 12u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+  for (const FrameDiff& d : compareDirectories(s.reference, s.dir / name))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+
+  uint64_t disk_limited = 0, disk_unlimited = 0;
+  for (const char* c : {"c1_", "c2_"}) {
+    std::string k(c);
+    // The budgets held in every frame (GPU: two contexts per client).
+    EXPECT_LE(limited[k + "ram_resident"].second, ram);
+    EXPECT_LE(limited[k + "gpu_resident"].second, 2 * gpu);
+    EXPECT_GT(limited[k + "ram_resident"].second, 0u);
+    EXPECT_GT(limited[k + "gpu_hits"].first, 0u);
+    EXPECT_EQ(limited[k + "skipped"].first, 0u);
+    EXPECT_EQ(limited[k + "triangles"].first, unlimited[k + "triangles"].first);
+    disk_limited += limited[k + "disk_bytes"].first;
+    disk_unlimited += unlimited[k + "disk_bytes"].first;
+  }
+  std::printf(
+      "geometry %llu bytes, RAM budget %llu, GPU budget %llu; read from disk: %llu "
+      "(unlimited: %llu)\n",
+      (unsigned long long)s.geometry_bytes, (unsigned long long)ram, (unsigned long long)gpu,
+      (unsigned long long)disk_limited, (unsigned long long)disk_unlimited);
+  // Evicted geometry was read again: the budgets really were too small.
+  EXPECT_GT(disk_limited, disk_unlimited);
+  EXPECT_LE(disk_unlimited, 2 * s.geometry_bytes);  // each client reads a file at most once
+}
+
+INSTANTIATE_TEST_SUITE_P(RamLevel, SmallBudgets, testing::Values(false, true),
+                         [](const auto& info) { return info.param ? "RamDisk" : "Memory"; });
+
+TEST(CacheOptions, ABadBudgetIsRefusedWithItsReason) {
+  ReplicatedPlant& s = scene();
+  int status = 0;
+  std::string log = test::runCapture(test::tool("dmmr-reference") + " --no-progress --scene " +
+                                         s.scene + " --walkthrough " + s.path + " --out " +
+                                         (s.dir / "bad") + " --ram-budget 12X",
+                                     &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("unknown unit"), std::string::npos) << log;
+}
