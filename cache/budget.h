@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <map>
 #include <string>
 
 #include "lru.h"
@@ -15,6 +16,8 @@ struct CacheOptions {
   uint64_t gpu_budget = LruBudget::kUnlimited;  // per GL context
   uint64_t ram_budget = LruBudget::kUnlimited;  // per client process
   std::string ram_dir;                          // RAM-disk directory; empty: process memory
+  bool prefetch = true;                         // clients: load ahead on the loader thread
+  Eviction eviction = Eviction::FrameLru;
 };
 
 // Throws Error saying what is wrong with `text`.
@@ -41,6 +44,13 @@ inline void addCacheOptions(CLI::App& app, CacheOptions& c) {
          "host RAM bytes for geometry files, per client (e.g. 4G; default unlimited)");
   app.add_option("--ram-dir", c.ram_dir,
                  "keep the RAM level as files in this directory (a RAM disk, e.g. /dev/shm)");
+  app.add_option("--eviction", c.eviction,
+                 "cache eviction: frame-lru (LRU, but MRU within a frame that overflows the "
+                 "budget) or lru")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, Eviction>{
+          {"frame-lru", Eviction::FrameLru}, {"lru", Eviction::Lru}}));
+  app.add_flag("!--no-prefetch", c.prefetch,
+               "clients load geometry only when a stage draws it (for measuring prefetch)");
 }
 
 }  // namespace dmmr

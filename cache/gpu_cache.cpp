@@ -6,7 +6,8 @@
 
 namespace dmmr {
 
-GpuCache::GpuCache(const Scene& scene, HostCache& host, MeshBackend& backend, uint64_t budget)
+GpuCache::GpuCache(const Scene& scene, HostCache& host, MeshBackend& backend, uint64_t budget,
+                   Eviction eviction)
     : host_(host), backend_(backend), meshes_(scene.manifest.geometries) {
   for (uint32_t t = 0; t < scene.manifest.textures; ++t) {
     TextureData tex = loadTexture(scene, t);
@@ -16,7 +17,7 @@ GpuCache::GpuCache(const Scene& scene, HostCache& host, MeshBackend& backend, ui
   if (budget != LruBudget::kUnlimited && texture_bytes_ > budget)
     throw Error("GPU budget of " + std::to_string(budget) + " bytes is smaller than the scene's " +
                 std::to_string(texture_bytes_) + " bytes of textures, which stay resident");
-  lru_ = LruBudget(budget == LruBudget::kUnlimited ? budget : budget - texture_bytes_);
+  lru_ = LruBudget(budget == LruBudget::kUnlimited ? budget : budget - texture_bytes_, eviction);
 }
 
 GpuCache::~GpuCache() {

@@ -48,7 +48,7 @@ class GpuCache {
   // count against `budget`; geometry gets what is left (possibly nothing,
   // in which case every mesh is drawn uncached).
   GpuCache(const Scene& scene, HostCache& host, MeshBackend& backend,
-           uint64_t budget = LruBudget::kUnlimited);
+           uint64_t budget = LruBudget::kUnlimited, Eviction eviction = Eviction::FrameLru);
   ~GpuCache();
   GpuCache(const GpuCache&) = delete;
   GpuCache& operator=(const GpuCache&) = delete;
@@ -59,6 +59,9 @@ class GpuCache {
   // geometry's file is unreadable or malformed: its objects are skipped
   // (HostCacheStats::skipped counts them).
   const GpuMesh* acquire(uint32_t geometry);
+
+  // A new frame for the eviction policy (lru.h): the stage calls it first.
+  void nextFrame() { lru_.nextFrame(); }
 
   // GL texture names by texture index, for Renderer::draw.
   const std::vector<GLuint>& textures() const { return textures_; }

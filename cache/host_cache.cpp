@@ -76,7 +76,7 @@ class HostCache::DirectoryStore : public Store {
 
 HostCache::HostCache(const Scene& scene, HostCacheOptions options)
     : scene_(scene),
-      lru_(options.budget),
+      lru_(options.budget, options.eviction),
       bad_(scene.manifest.geometries, 0),
       in_flight_(scene.manifest.geometries, 0),
       queued_(scene.manifest.geometries, 0) {
@@ -189,6 +189,11 @@ void HostCache::prefetch(const std::vector<uint32_t>& geometries, bool urgent) {
     }
   }
   changed_.notify_all();
+}
+
+void HostCache::nextFrame() {
+  std::lock_guard<std::mutex> lock(mu_);
+  lru_.nextFrame();
 }
 
 void HostCache::drain() {

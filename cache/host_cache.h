@@ -27,6 +27,7 @@ struct HostCacheOptions {
   // When set, entries are files in a fresh directory under this one (a RAM
   // disk such as /dev/shm, as in the paper) instead of process memory.
   std::string dir;
+  Eviction eviction = Eviction::FrameLru;
 };
 
 struct HostCacheStats {
@@ -61,6 +62,9 @@ class HostCache {
   // evict by LRU; the others (objects entering the region) only fill free
   // space. Returns at once.
   void prefetch(const std::vector<uint32_t>& geometries, bool urgent);
+
+  // A new frame for the eviction policy (lru.h): the render stage calls it.
+  void nextFrame();
 
   // Blocks until the loader has no request left (tests and benchmarks).
   void drain();

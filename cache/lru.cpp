@@ -8,27 +8,36 @@ bool LruBudget::touch(uint32_t key) {
   auto it = entries_.find(key);
   if (it == entries_.end()) return false;
   order_.splice(order_.end(), order_, it->second.pos);
+  it->second.frame = frame_;
   return true;
+}
+
+void LruBudget::add(uint32_t key, uint64_t bytes) {
+  order_.push_back(key);
+  entries_[key] = {std::prev(order_.end()), bytes, frame_};
+  used_ += bytes;
+}
+
+uint32_t LruBudget::victim() const {
+  uint32_t lru = order_.front();
+  if (eviction_ == Eviction::FrameLru && entries_.at(lru).frame == frame_) return order_.back();
+  return lru;
 }
 
 void LruBudget::insert(uint32_t key, uint64_t bytes, std::vector<uint32_t>* evicted) {
   DMMR_CHECK(admits(bytes) && !contains(key));
   while (budget_ - used_ < bytes) {
-    uint32_t victim = order_.front();
-    erase(victim);
-    evicted->push_back(victim);
+    uint32_t v = victim();
+    erase(v);
+    evicted->push_back(v);
   }
-  order_.push_back(key);
-  entries_[key] = {std::prev(order_.end()), bytes};
-  used_ += bytes;
+  add(key, bytes);
 }
 
 bool LruBudget::insertIfFree(uint32_t key, uint64_t bytes) {
   DMMR_CHECK(!contains(key));
   if (budget_ - used_ < bytes) return false;
-  order_.push_back(key);
-  entries_[key] = {std::prev(order_.end()), bytes};
-  used_ += bytes;
+  add(key, bytes);
   return true;
 }
 

@@ -11,11 +11,28 @@
 
 namespace dmmr {
 
+// Which entry insert() gives up when the budget is full.
+enum class Eviction : uint8_t {
+  // The least recently used.
+  Lru,
+  // The least recently used, unless it was used in the current frame too:
+  // then the frame's working set exceeds the budget, and LRU would evict,
+  // in a walkthrough that draws in the same order every frame, exactly what
+  // the next frame needs first (every access a miss). Evicting the most
+  // recently used instead keeps the rest of the working set for the next
+  // frame. The default.
+  FrameLru,
+};
+
 class LruBudget {
  public:
   static constexpr uint64_t kUnlimited = UINT64_MAX;
 
-  explicit LruBudget(uint64_t budget = kUnlimited) : budget_(budget) {}
+  explicit LruBudget(uint64_t budget = kUnlimited, Eviction eviction = Eviction::FrameLru)
+      : budget_(budget), eviction_(eviction) {}
+
+  // Starts a new frame: entries used before it are the first to go.
+  void nextFrame() { ++frame_; }
 
   uint64_t budget() const { return budget_; }
   uint64_t used() const { return used_; }  // never above budget()
@@ -49,8 +66,14 @@ class LruBudget {
   struct Entry {
     std::list<uint32_t>::iterator pos;
     uint64_t bytes;
+    uint64_t frame;  // when last used
   };
+  void add(uint32_t key, uint64_t bytes);
+  uint32_t victim() const;
+
   uint64_t budget_;
+  Eviction eviction_;
+  uint64_t frame_ = 0;
   uint64_t used_ = 0;
   std::list<uint32_t> order_;  // front: least recently used
   std::unordered_map<uint32_t, Entry> entries_;

@@ -57,11 +57,11 @@ void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheSta
 // One GL context with the shared drawing code and its GPU cache level.
 struct GlStage {
   GlStage(const Scene& scene, HostCache& host, const ContextOptions& ctx, const ViewOptions& view,
-          uint64_t gpu_budget)
+          const CacheOptions& cache)
       : context(createContext(ctx)),
         renderer(context->gl(), view.width, view.height),
         backend(renderer),
-        meshes(scene, host, backend, gpu_budget) {}
+        meshes(scene, host, backend, cache.gpu_budget, cache.eviction) {}
   std::unique_ptr<GlContext> context;
   Renderer renderer;
   RendererBackend backend;
@@ -74,11 +74,13 @@ class VisibilityStage {
       : scene_(scene),
         host_(host),
         opts_(opts.visibility),
-        gl_(scene, host, opts.visibility_context, opts.view, opts.cache.gpu_budget),
+        prefetch_(opts.cache.prefetch),
+        gl_(scene, host, opts.visibility_context, opts.view, opts.cache),
         marked_until_(scene.objects.size(), 0) {}
 
   VisibleJob run(FrameJob job) {
     injectFault("visibility", job.frame);
+    gl_.meshes.nextFrame();
     GpuCacheStats before = gl_.meshes.stats();
     VisibleJob out = decide(std::move(job));
     addGpuStats(out.stats, before, gl_.meshes.stats());
@@ -87,7 +89,7 @@ class VisibilityStage {
     std::vector<uint32_t> geometries;
     geometries.reserve(out.visible.size());
     for (uint32_t o : out.visible) geometries.push_back(scene_.objects[o].geometry);
-    host_.prefetch(geometries, /*urgent=*/true);
+    if (prefetch_) host_.prefetch(geometries, /*urgent=*/true);
     return out;
   }
 
@@ -228,6 +230,7 @@ class VisibilityStage {
   const Scene& scene_;
   HostCache& host_;
   VisibilityOptions opts_;
+  bool prefetch_;
   GlStage gl_;
   std::vector<uint32_t> previous_;      // last frame's visible list (ascending)
   std::vector<uint32_t> marked_until_;  // per object: first frame to query again
@@ -240,12 +243,14 @@ class RenderStage {
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
-        gl_(scene, host, opts.render_context, opts.view, opts.cache.gpu_budget),
+        gl_(scene, host, opts.render_context, opts.view, opts.cache),
         host_before_(host.stats()) {}
 
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
     injectFault("render", job.frame);
+    gl_.meshes.nextFrame();
+    host_.nextFrame();
     GpuCacheStats gpu_before = gl_.meshes.stats();
     SubFrame out;
     out.frame = job.frame;
@@ -369,8 +374,8 @@ int runClient(Comm& comm, const ClientOptions& opts) {
   std::unique_ptr<HostCache> host;
   try {
     scene = loadScene(opts.scene, /*with_skeleton=*/false);
-    host = std::make_unique<HostCache>(scene,
-                                       HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir});
+    host = std::make_unique<HostCache>(
+        scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   } catch (const std::exception& e) {
     problem = e.what();
   }
@@ -430,7 +435,7 @@ int runClient(Comm& comm, const ClientOptions& opts) {
       if (m.tag != Tag::Job) continue;
       try {
         FrameJob job = decodeJob(m.bytes);
-        prefetchEntering(scene, *host, job.objects, &region);
+        if (opts.cache.prefetch) prefetchEntering(scene, *host, job.objects, &region);
         jobs.push(std::move(job));
       } catch (const std::exception& e) {
         failure.fail(e.what());

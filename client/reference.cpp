@@ -71,9 +71,10 @@ void runReference(const ReferenceOptions& opts) {
 
   // With unlimited budgets every geometry is uploaded once, on first use;
   // instances share it.
-  HostCache host(scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir});
+  HostCache host(scene,
+                 HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   RendererBackend backend(renderer);
-  GpuCache meshes(scene, host, backend, opts.cache.gpu_budget);
+  GpuCache meshes(scene, host, backend, opts.cache.gpu_budget, opts.cache.eviction);
 
   std::string csv = "frame,frame_ms,draw_ms,objects,triangles";
   csv += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles\n" : "\n";
@@ -85,6 +86,8 @@ void runReference(const ReferenceOptions& opts) {
     Camera cam =
         cameraAt(path.points[f], opts.view.width, opts.view.height, opts.view.fovy_deg, near);
     renderer.beginFrame(cam, full);
+    meshes.nextFrame();
+    host.nextFrame();
     uint64_t tris = 0;
     for (const ObjectBounds& o : scene.objects) {  // ascending object index
       const GpuMesh* mesh = meshes.acquire(o.geometry);

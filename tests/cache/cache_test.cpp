@@ -119,7 +119,7 @@ TEST(HostCache, UnlimitedReadsEachFileOnceAndDecodesAsLoadGeometry) {
 TEST(HostCache, FollowsLruUnderABudget) {
   PlantFixture& p = plant();
   uint64_t budget = p.total() / 4;
-  HostCache cache(p.scene, {budget, ""});
+  HostCache cache(p.scene, {budget, "", Eviction::Lru});
   std::vector<uint32_t> model;  // least recently used first
   uint64_t hits = 0, misses = 0, used = 0;
   std::mt19937 rng(7);

@@ -12,7 +12,7 @@ using namespace dmmr;
 using Keys = std::vector<uint32_t>;
 
 TEST(LruBudget, EvictsLeastRecentlyUsedFirst) {
-  LruBudget lru(100);
+  LruBudget lru(100, Eviction::Lru);
   Keys evicted;
   lru.insert(1, 40, &evicted);
   lru.insert(2, 40, &evicted);
@@ -24,7 +24,7 @@ TEST(LruBudget, EvictsLeastRecentlyUsedFirst) {
 }
 
 TEST(LruBudget, EvictsAsManyAsItTakes) {
-  LruBudget lru(100);
+  LruBudget lru(100, Eviction::Lru);
   Keys evicted;
   for (uint32_t k = 0; k < 5; ++k) lru.insert(k, 20, &evicted);
   EXPECT_TRUE(evicted.empty());
@@ -35,7 +35,7 @@ TEST(LruBudget, EvictsAsManyAsItTakes) {
 }
 
 TEST(LruBudget, TouchOfAnAbsentKeyChangesNothing) {
-  LruBudget lru(10);
+  LruBudget lru(10, Eviction::Lru);
   Keys evicted;
   lru.insert(1, 5, &evicted);
   EXPECT_FALSE(lru.touch(2));
@@ -52,7 +52,7 @@ TEST(LruBudget, AdmitsNothingLargerThanTheBudget) {
 }
 
 TEST(LruBudget, InsertIfFreeNeverEvicts) {
-  LruBudget lru(100);
+  LruBudget lru(100, Eviction::Lru);
   Keys evicted;
   lru.insert(1, 60, &evicted);
   EXPECT_FALSE(lru.insertIfFree(2, 41));
@@ -62,7 +62,7 @@ TEST(LruBudget, InsertIfFreeNeverEvicts) {
 }
 
 TEST(LruBudget, EraseReturnsTheBytesFreed) {
-  LruBudget lru(100);
+  LruBudget lru(100, Eviction::Lru);
   Keys evicted;
   lru.insert(7, 33, &evicted);
   EXPECT_EQ(lru.erase(7), 33u);
@@ -71,52 +71,101 @@ TEST(LruBudget, EraseReturnsTheBytesFreed) {
   EXPECT_EQ(lru.size(), 0u);
 }
 
+TEST(LruBudget, FrameLruEvictsTheFramesNewestWhenTheFrameOverflows) {
+  LruBudget lru(30, Eviction::FrameLru);
+  Keys evicted;
+  lru.insert(1, 10, &evicted);
+  lru.nextFrame();
+  lru.insert(2, 10, &evicted);
+  lru.insert(3, 10, &evicted);
+  lru.insert(4, 10, &evicted);  // 1 is from an earlier frame: plain LRU
+  EXPECT_EQ(evicted, Keys{1});
+  lru.insert(5, 10, &evicted);  // all from this frame: the newest goes
+  EXPECT_EQ(evicted, (Keys{1, 4}));
+  EXPECT_EQ(lru.order(), (Keys{2, 3, 5}));
+}
+
+// A walkthrough that draws the same 10 entries in the same order every
+// frame through room for 6: LRU misses every time, FrameLru keeps 5 of them.
+TEST(LruBudget, FrameLruKeepsPartOfAWorkingSetLargerThanTheBudget) {
+  for (Eviction e : {Eviction::Lru, Eviction::FrameLru}) {
+    LruBudget lru(60, e);
+    int hits = 0;
+    for (int frame = 0; frame < 10; ++frame) {
+      lru.nextFrame();
+      for (uint32_t k = 0; k < 10; ++k) {
+        Keys evicted;
+        if (lru.touch(k))
+          hits += frame > 0;
+        else
+          lru.insert(k, 10, &evicted);
+      }
+    }
+    EXPECT_EQ(hits, e == Eviction::Lru ? 0 : 9 * 5) << int(e);
+  }
+}
+
 // Fixed-seed random operations against a plain model (a vector in use
-// order): same evictions, same contents, and never above the budget.
+// order, with the frame of each use): same evictions, same contents, and
+// never above the budget, for both policies.
 TEST(LruBudget, MatchesAPlainModelUnderRandomOperations) {
   std::mt19937 rng(20261122);
-  for (uint64_t budget : {0u, 1u, 50u, 200u, 1000u}) {
-    LruBudget lru(budget);
-    std::vector<std::pair<uint32_t, uint64_t>> model;  // least recently used first
-    std::vector<uint64_t> size(40);
-    for (auto& s : size) s = rng() % 120;
-    for (int step = 0; step < 5000; ++step) {
-      uint32_t key = rng() % 40;
-      auto it = std::find_if(model.begin(), model.end(), [&](auto& e) { return e.first == key; });
-      int op = int(rng() % 3);
-      if (op == 0 && it != model.end()) {  // a hit
-        auto e = *it;
-        model.erase(it);
-        model.push_back(e);
-        ASSERT_TRUE(lru.touch(key));
-      } else if (op == 1 && it == model.end() && lru.admits(size[key])) {  // a miss
-        Keys evicted, expected;
-        uint64_t used = 0;
-        for (auto& e : model) used += e.second;
-        while (budget - used < size[key]) {
-          expected.push_back(model.front().first);
-          used -= model.front().second;
-          model.erase(model.begin());
+  for (Eviction policy : {Eviction::Lru, Eviction::FrameLru})
+    for (uint64_t budget : {0u, 1u, 50u, 200u, 1000u}) {
+      LruBudget lru(budget, policy);
+      struct E {
+        uint32_t key;
+        uint64_t bytes, frame;
+      };
+      std::vector<E> model;  // least recently used first
+      uint64_t frame = 0;
+      std::vector<uint64_t> size(40);
+      for (auto& s : size) s = rng() % 120;
+      for (int step = 0; step < 5000; ++step) {
+        if (rng() % 50 == 0) {
+          lru.nextFrame();
+          ++frame;
         }
-        model.push_back({key, size[key]});
-        lru.insert(key, size[key], &evicted);
-        ASSERT_EQ(evicted, expected);
-      } else if (op == 2) {
-        uint64_t want = it == model.end() ? 0 : it->second;
-        if (it != model.end()) model.erase(it);
-        ASSERT_EQ(lru.erase(key), want);
+        uint32_t key = rng() % 40;
+        auto it = std::find_if(model.begin(), model.end(), [&](auto& e) { return e.key == key; });
+        int op = int(rng() % 3);
+        if (op == 0 && it != model.end()) {  // a hit
+          E e = *it;
+          e.frame = frame;
+          model.erase(it);
+          model.push_back(e);
+          ASSERT_TRUE(lru.touch(key));
+        } else if (op == 1 && it == model.end() && lru.admits(size[key])) {  // a miss
+          Keys evicted, expected;
+          uint64_t used = 0;
+          for (auto& e : model) used += e.bytes;
+          while (budget - used < size[key]) {
+            auto victim = policy == Eviction::FrameLru && model.front().frame == frame
+                              ? model.end() - 1
+                              : model.begin();
+            expected.push_back(victim->key);
+            used -= victim->bytes;
+            model.erase(victim);
+          }
+          model.push_back({key, size[key], frame});
+          lru.insert(key, size[key], &evicted);
+          ASSERT_EQ(evicted, expected);
+        } else if (op == 2) {
+          uint64_t want = it == model.end() ? 0 : it->bytes;
+          if (it != model.end()) model.erase(it);
+          ASSERT_EQ(lru.erase(key), want);
+        }
+        Keys order;
+        uint64_t used = 0;
+        for (auto& e : model) {
+          order.push_back(e.key);
+          used += e.bytes;
+        }
+        ASSERT_EQ(lru.order(), order);
+        ASSERT_EQ(lru.used(), used);
+        ASSERT_LE(lru.used(), budget);
       }
-      Keys order;
-      uint64_t used = 0;
-      for (auto& e : model) {
-        order.push_back(e.first);
-        used += e.second;
-      }
-      ASSERT_EQ(lru.order(), order);
-      ASSERT_EQ(lru.used(), used);
-      ASSERT_LE(lru.used(), budget);
     }
-  }
 }
 
 TEST(ByteSize, ParsesCountsAndBinaryUnits) {

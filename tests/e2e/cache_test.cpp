@@ -119,7 +119,7 @@ TEST_P(SmallBudgets, FramesEqualUnlimitedBudgets) {
   for (const FrameDiff& d : compareDirectories(s.reference, s.dir / name))
     EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
 
-  uint64_t disk_limited = 0, disk_unlimited = 0;
+  uint64_t disk_limited = 0, disk_unlimited = 0, misses_limited = 0, misses_unlimited = 0;
   for (const char* c : {"c1_", "c2_"}) {
     std::string k(c);
     // The budgets held in every frame (GPU: two contexts per client).
@@ -131,14 +131,20 @@ TEST_P(SmallBudgets, FramesEqualUnlimitedBudgets) {
     EXPECT_EQ(limited[k + "triangles"].first, unlimited[k + "triangles"].first);
     disk_limited += limited[k + "disk_bytes"].first;
     disk_unlimited += unlimited[k + "disk_bytes"].first;
+    misses_limited += limited[k + "gpu_misses"].first;
+    misses_unlimited += unlimited[k + "gpu_misses"].first;
+    // Each client read more than its RAM level can hold, so it gave some up.
+    EXPECT_GT(limited[k + "disk_bytes"].first, ram);
   }
   std::printf(
-      "geometry %llu bytes, RAM budget %llu, GPU budget %llu; read from disk: %llu "
-      "(unlimited: %llu)\n",
+      "geometry %llu bytes, RAM budget %llu, GPU budget %llu; read from disk %llu "
+      "(unlimited %llu); GPU misses %llu (unlimited %llu)\n",
       (unsigned long long)s.geometry_bytes, (unsigned long long)ram, (unsigned long long)gpu,
-      (unsigned long long)disk_limited, (unsigned long long)disk_unlimited);
-  // Evicted geometry was read again: the budgets really were too small.
-  EXPECT_GT(disk_limited, disk_unlimited);
+      (unsigned long long)disk_limited, (unsigned long long)disk_unlimited,
+      (unsigned long long)misses_limited, (unsigned long long)misses_unlimited);
+  // Without budgets a mesh is uploaded once per context; with them, evicted
+  // meshes came back: the budgets really were too small.
+  EXPECT_GT(misses_limited, misses_unlimited);
   EXPECT_LE(disk_unlimited, 2 * s.geometry_bytes);  // each client reads a file at most once
 }
 
