@@ -79,6 +79,13 @@ class ByteReader {
       for (auto& v : *out) v = std::bit_cast<T>(getLE<UInt<sizeof(T)>>(field));
     }
   }
+  // The next n bytes in place (valid while the reader's data is), skipped.
+  const uint8_t* bytes(uint64_t n, const char* field) {
+    need(n, 1, field);
+    const uint8_t* p = p_;
+    p_ += n;
+    return p;
+  }
   size_t remaining() const { return size_t(end_ - p_); }
   // Throws unless every byte was consumed.
   void finish() const;

@@ -1,8 +1,12 @@
 #include "formats.h"
 
+#include <bit>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <nlohmann/json.hpp>
+
+#include "geometry_codec.h"
 
 namespace dmmr {
 
@@ -197,19 +201,339 @@ std::vector<uint32_t> decodeOccluders(const std::vector<uint8_t>& file, const st
 }
 
 // ---- geometry -------------------------------------------------------------
+//
+// Every encoding: encoding u8 | flags u8 | vertex count u32 | index count u32
+// | submesh count u32 | submeshes, then the encoding's body (see
+// docs/scene-format.md). Flags say which attributes are present; kIndex16
+// applies to the layouts that store indices as they are.
 
-std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
+namespace {
+
+bool isMeshopt(Encoding e) {
+  return e == Encoding::Meshopt || e == Encoding::QuantizedMeshopt;
+}
+bool isQuantized(Encoding e) {
+  return e == Encoding::Quantized || e == Encoding::QuantizedMeshopt;
+}
+
+// Texture coordinates in the quantized layouts: 16-bit fixed point after
+// per-geometry integer offsets, or floats where that cannot hold them.
+enum TexcoordMode : uint8_t { kTexcoordFixed = 0, kTexcoordFloat = 1 };
+
+// Little-endian stores into vertex records (meshopt streams).
+void storeLE(uint8_t* p, uint32_t v, int n) {
+  for (int i = 0; i < n; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+uint32_t loadLE(const uint8_t* p, int n) {
+  uint32_t v = 0;
+  for (int i = 0; i < n; ++i) v |= uint32_t(p[i]) << (8 * i);
+  return v;
+}
+
+void putIndices(ByteWriter& w, const std::vector<uint32_t>& idx, bool idx16) {
+  if (idx16) {
+    std::vector<uint16_t> small(idx.begin(), idx.end());
+    w.array(small.data(), small.size());
+  } else {
+    w.array(idx.data(), idx.size());
+  }
+}
+
+void getIndices(ByteReader& r, std::vector<uint32_t>* out, uint64_t n, bool idx16, uint32_t nv,
+                const char* field) {
+  if (idx16) {
+    std::vector<uint16_t> small;
+    r.array(&small, n, field);
+    out->assign(small.begin(), small.end());
+  } else {
+    r.array(out, n, field);
+  }
+  for (uint32_t idx : *out)
+    if (idx >= nv)
+      r.fail(std::string(field) + ": index " + std::to_string(idx) + " out of range (" +
+             std::to_string(nv) + " vertices)");
+}
+
+// meshopt-coded triangles: stream size u32 | stream | rotations.
+void putTriangles(ByteWriter& w, const std::vector<uint32_t>& idx, size_t nv) {
+  std::vector<uint8_t> stream, rotations;
+  codec::encodeTriangles(idx.data(), idx.size(), nv, &stream, &rotations);
+  w.u32(uint32_t(stream.size()));
+  w.array(stream.data(), stream.size());
+  w.array(rotations.data(), rotations.size());
+}
+
+void getTriangles(ByteReader& r, std::vector<uint32_t>* out, uint32_t n, uint32_t nv,
+                  const char* field) {
+  std::string f(field);
+  uint32_t size = r.u32((f + " stream size").c_str());
+  const uint8_t* stream = r.bytes(size, (f + " stream").c_str());
+  if (n > codec::maxTriangleIndices(size))
+    r.fail(f + ": stream of " + std::to_string(size) + " bytes cannot hold " + std::to_string(n) +
+           " indices");
+  const uint8_t* rotations = r.bytes(codec::rotationBytes(n), (f + " rotations").c_str());
+  out->resize(n);
+  std::string e = codec::decodeTriangles(stream, size, rotations, n, nv, out->data());
+  if (!e.empty()) r.fail(f + ": " + e);
+}
+
+void putGrid(ByteWriter& w, const codec::PositionGrid& g) {
+  putVec(w, g.origin);
+  w.f64(g.cell);
+  w.u32(uint32_t(g.cellCount()));
+  w.array(g.cells.data(), g.cells.size());
+}
+
+codec::PositionGrid getGrid(ByteReader& r) {
+  codec::PositionGrid g;
+  for (int a = 0; a < 3; ++a) g.origin[a] = r.f64("position origin");
+  g.cell = r.f64("position cell size");
+  uint32_t n = r.u32("position cell count");
+  if (n > codec::kMaxCells) r.fail("position cell count " + std::to_string(n) + " exceeds 65536");
+  r.array(&g.cells, uint64_t(n) * 3, "position cell table");
+  std::string e = codec::checkPositionGrid(g);
+  if (!e.empty()) r.fail(e);
+  return g;
+}
+
+// The quantized attributes of one geometry, structure of arrays.
+struct QuantizedVertices {
+  codec::PositionGrid grid;
+  std::vector<uint16_t> cell;
+  std::vector<uint32_t> offsets;
+  std::vector<uint16_t> normals;
+  uint8_t texcoord_mode = kTexcoordFixed;
+  int32_t texcoord_offsets[2] = {0, 0};
+  std::vector<uint16_t> texcoords;  // fixed mode
+};
+
+QuantizedVertices quantize(const GeometryData& g) {
+  size_t nv = g.vertexCount();
+  QuantizedVertices q;
+  q.grid = codec::choosePositionGrid(g.positions.data(), nv, codec::cellBudget(nv));
+  q.cell.resize(nv);
+  q.offsets.resize(nv);
+  codec::quantizePositions(g.positions.data(), nv, q.grid, q.cell.data(), q.offsets.data());
+  if (!g.normals.empty()) {
+    q.normals.resize(nv);
+    codec::encodeNormals(g.normals.data(), nv, q.normals.data());
+  }
+  if (!g.texcoords.empty()) {
+    if (codec::chooseTexcoordOffsets(g.texcoords.data(), nv, q.texcoord_offsets)) {
+      q.texcoords.resize(2 * nv);
+      codec::quantizeTexcoords(g.texcoords.data(), nv, q.texcoord_offsets, q.texcoords.data());
+    } else {
+      q.texcoord_mode = kTexcoordFloat;
+    }
+  }
+  return q;
+}
+
+void putTexcoordHeader(ByteWriter& w, const QuantizedVertices& q) {
+  w.u8(q.texcoord_mode);
+  if (q.texcoord_mode == kTexcoordFixed) {
+    w.i32(q.texcoord_offsets[0]);
+    w.i32(q.texcoord_offsets[1]);
+  }
+}
+
+void getTexcoordHeader(ByteReader& r, QuantizedVertices* q) {
+  q->texcoord_mode = r.u8("texcoord mode");
+  if (q->texcoord_mode > kTexcoordFloat)
+    r.fail("unknown texcoord mode " + std::to_string(q->texcoord_mode));
+  if (q->texcoord_mode == kTexcoordFixed) {
+    q->texcoord_offsets[0] = r.i32("texcoord offset");
+    q->texcoord_offsets[1] = r.i32("texcoord offset");
+  }
+}
+
+// Decodes the quantized arrays of *q into *g (positions, normals and fixed
+// texture coordinates; colours and float texture coordinates are already there).
+void dequantize(ByteReader& r, const QuantizedVertices& q, uint32_t nv, GeometryData* g) {
+  g->positions.resize(size_t(nv) * 3);
+  std::string e =
+      codec::dequantizePositions(q.grid, q.cell.data(), q.offsets.data(), nv, g->positions.data());
+  if (!e.empty()) r.fail(e);
+  if (!q.normals.empty()) {
+    g->normals.resize(size_t(nv) * 3);
+    e = codec::decodeNormals(q.normals.data(), nv, g->normals.data());
+    if (!e.empty()) r.fail(e);
+  }
+  if (!q.texcoords.empty()) {
+    g->texcoords.resize(size_t(nv) * 2);
+    e = codec::dequantizeTexcoords(q.texcoords.data(), nv, q.texcoord_offsets, g->texcoords.data());
+    if (!e.empty()) r.fail(e);
+  }
+}
+
+// Vertex records for the meshopt layouts. Float32: position, normal, RGBA8,
+// texcoords as stored. Quantized: offsets u32 | cell u16 | normal code u16
+// (0 without normals) | RGBA8 | texcoords (u16 x 2, or f32 x 2 in float mode).
+struct RecordLayout {
+  size_t stride = 0, normal = 0, color = 0, uv = 0;
+};
+
+RecordLayout recordLayout(Encoding e, uint8_t flags, uint8_t texcoord_mode) {
+  RecordLayout l;
+  bool quantized = isQuantized(e);
+  l.stride = quantized ? 8 : 12;
+  l.normal = quantized ? 6 : l.stride;
+  if (!quantized && (flags & kHasNormals)) l.stride += 12;
+  l.color = l.stride;
+  if (flags & kHasColors) l.stride += 4;
+  l.uv = l.stride;
+  if (flags & kHasTexcoords) l.stride += quantized && texcoord_mode == kTexcoordFixed ? 4 : 8;
+  return l;
+}
+
+std::vector<uint8_t> floatRecords(const GeometryData& g, const RecordLayout& l) {
+  size_t nv = g.vertexCount();
+  std::vector<uint8_t> rec(nv * l.stride, 0);
+  auto putF = [](uint8_t* p, float f) { storeLE(p, std::bit_cast<uint32_t>(f), 4); };
+  for (size_t v = 0; v < nv; ++v) {
+    uint8_t* p = &rec[v * l.stride];
+    for (int a = 0; a < 3; ++a) putF(p + 4 * a, g.positions[3 * v + size_t(a)]);
+    if (!g.normals.empty())
+      for (int a = 0; a < 3; ++a) putF(p + l.normal + 4 * size_t(a), g.normals[3 * v + size_t(a)]);
+    if (!g.colors.empty()) std::memcpy(p + l.color, &g.colors[4 * v], 4);
+    if (!g.texcoords.empty())
+      for (int a = 0; a < 2; ++a) putF(p + l.uv + 4 * size_t(a), g.texcoords[2 * v + size_t(a)]);
+  }
+  return rec;
+}
+
+void fromFloatRecords(const std::vector<uint8_t>& rec, const RecordLayout& l, uint8_t flags,
+                      uint32_t nv, GeometryData* g) {
+  auto getF = [](const uint8_t* p) { return std::bit_cast<float>(loadLE(p, 4)); };
+  g->positions.resize(size_t(nv) * 3);
+  if (flags & kHasNormals) g->normals.resize(size_t(nv) * 3);
+  if (flags & kHasColors) g->colors.resize(size_t(nv) * 4);
+  if (flags & kHasTexcoords) g->texcoords.resize(size_t(nv) * 2);
+  for (size_t v = 0; v < nv; ++v) {
+    const uint8_t* p = &rec[v * l.stride];
+    for (int a = 0; a < 3; ++a) g->positions[3 * v + size_t(a)] = getF(p + 4 * a);
+    if (flags & kHasNormals)
+      for (int a = 0; a < 3; ++a)
+        g->normals[3 * v + size_t(a)] = getF(p + l.normal + 4 * size_t(a));
+    if (flags & kHasColors) std::memcpy(&g->colors[4 * v], p + l.color, 4);
+    if (flags & kHasTexcoords)
+      for (int a = 0; a < 2; ++a) g->texcoords[2 * v + size_t(a)] = getF(p + l.uv + 4 * size_t(a));
+  }
+}
+
+std::vector<uint8_t> quantizedRecords(const GeometryData& g, const QuantizedVertices& q,
+                                      const RecordLayout& l) {
+  size_t nv = g.vertexCount();
+  std::vector<uint8_t> rec(nv * l.stride, 0);
+  for (size_t v = 0; v < nv; ++v) {
+    uint8_t* p = &rec[v * l.stride];
+    storeLE(p, q.offsets[v], 4);
+    storeLE(p + 4, q.cell[v], 2);
+    if (!q.normals.empty()) storeLE(p + l.normal, q.normals[v], 2);
+    if (!g.colors.empty()) std::memcpy(p + l.color, &g.colors[4 * v], 4);
+    if (!g.texcoords.empty()) {
+      for (int a = 0; a < 2; ++a) {
+        if (q.texcoord_mode == kTexcoordFixed)
+          storeLE(p + l.uv + 2 * size_t(a), q.texcoords[2 * v + size_t(a)], 2);
+        else
+          storeLE(p + l.uv + 4 * size_t(a), std::bit_cast<uint32_t>(g.texcoords[2 * v + size_t(a)]),
+                  4);
+      }
+    }
+  }
+  return rec;
+}
+
+// Splits quantized records into *q's arrays and *g's colours and float
+// texture coordinates.
+void fromQuantizedRecords(ByteReader& r, const std::vector<uint8_t>& rec, const RecordLayout& l,
+                          uint8_t flags, uint32_t nv, QuantizedVertices* q, GeometryData* g) {
+  q->cell.resize(nv);
+  q->offsets.resize(nv);
+  if (flags & kHasNormals) q->normals.resize(nv);
+  if (flags & kHasColors) g->colors.resize(size_t(nv) * 4);
+  bool fixed = q->texcoord_mode == kTexcoordFixed;
+  if (flags & kHasTexcoords)
+    (fixed ? q->texcoords.resize(size_t(nv) * 2) : g->texcoords.resize(size_t(nv) * 2));
+  for (size_t v = 0; v < nv; ++v) {
+    const uint8_t* p = &rec[v * l.stride];
+    q->offsets[v] = loadLE(p, 4);
+    q->cell[v] = uint16_t(loadLE(p + 4, 2));
+    uint16_t n = uint16_t(loadLE(p + l.normal, 2));
+    if (flags & kHasNormals)
+      q->normals[v] = n;
+    else if (n != 0)
+      r.fail("vertex stream: padding of vertex " + std::to_string(v) + " is not zero");
+    if (flags & kHasColors) std::memcpy(&g->colors[4 * v], p + l.color, 4);
+    if (flags & kHasTexcoords)
+      for (int a = 0; a < 2; ++a) {
+        if (fixed)
+          q->texcoords[2 * v + size_t(a)] = uint16_t(loadLE(p + l.uv + 2 * size_t(a), 2));
+        else
+          g->texcoords[2 * v + size_t(a)] =
+              std::bit_cast<float>(loadLE(p + l.uv + 4 * size_t(a), 4));
+      }
+  }
+}
+
+void putVertexStream(ByteWriter& w, const std::vector<uint8_t>& records, size_t nv, size_t stride) {
+  std::vector<uint8_t> stream;
+  codec::encodeVertexStream(records.data(), nv, stride, &stream);
+  w.u32(uint32_t(stream.size()));
+  w.array(stream.data(), stream.size());
+}
+
+std::vector<uint8_t> getVertexStream(ByteReader& r, uint32_t nv, size_t stride) {
+  uint32_t size = r.u32("vertex stream size");
+  const uint8_t* stream = r.bytes(size, "vertex stream");
+  // Bounded before allocating: a hostile vertex count fails here.
+  if (nv > codec::maxVertexRecords(size, stride))
+    r.fail("vertex stream of " + std::to_string(size) + " bytes cannot hold " + std::to_string(nv) +
+           " vertices");
+  std::vector<uint8_t> rec(size_t(nv) * stride);
+  std::string e = codec::decodeVertexStream(stream, size, nv, stride, rec.data());
+  if (!e.empty()) r.fail(e);
+  return rec;
+}
+
+}  // namespace
+
+const char* encodingName(Encoding e) {
+  switch (e) {
+    case Encoding::Float32:
+      return "float32";
+    case Encoding::Quantized:
+      return "quantized";
+    case Encoding::Meshopt:
+      return "meshopt";
+    case Encoding::QuantizedMeshopt:
+      return "quantized-meshopt";
+  }
+  return "?";
+}
+
+bool parseEncoding(const std::string& name, Encoding* out) {
+  for (Encoding e : kEncodings)
+    if (name == encodingName(e)) {
+      *out = e;
+      return true;
+    }
+  return false;
+}
+
+std::vector<uint8_t> encodeGeometry(const GeometryData& g, Encoding encoding) {
   size_t nv = g.vertexCount();
   DMMR_CHECK(g.positions.size() == nv * 3);
   DMMR_CHECK(g.normals.empty() || g.normals.size() == nv * 3);
   DMMR_CHECK(g.colors.empty() || g.colors.size() == nv * 4);
   DMMR_CHECK(g.texcoords.empty() || g.texcoords.size() == nv * 2);
-  bool idx16 = nv <= 65536;
+  bool idx16 = nv <= 65536 && !isMeshopt(encoding);
+  uint8_t flags = (g.normals.empty() ? 0 : kHasNormals) | (g.colors.empty() ? 0 : kHasColors) |
+                  (g.texcoords.empty() ? 0 : kHasTexcoords) | (idx16 ? kIndex16 : 0) |
+                  (g.lod_indices.empty() ? 0 : kHasLod);
   ByteWriter w;
-  w.u8(uint8_t(Encoding::Float32));
-  w.u8((g.normals.empty() ? 0 : kHasNormals) | (g.colors.empty() ? 0 : kHasColors) |
-       (g.texcoords.empty() ? 0 : kHasTexcoords) | (idx16 ? kIndex16 : 0) |
-       (g.lod_indices.empty() ? 0 : kHasLod));
+  w.u8(uint8_t(encoding));
+  w.u8(flags);
   w.u32(uint32_t(nv));
   w.u32(uint32_t(g.indices.size()));
   w.u32(uint32_t(g.submeshes.size()));
@@ -219,22 +543,50 @@ std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
     w.array(s.diffuse, 4);
     w.i32(s.texture);
   }
-  w.array(g.positions.data(), g.positions.size());
-  w.array(g.normals.data(), g.normals.size());
-  w.array(g.colors.data(), g.colors.size());
-  w.array(g.texcoords.data(), g.texcoords.size());
-  auto putIndices = [&](const std::vector<uint32_t>& idx) {
-    if (idx16) {
-      std::vector<uint16_t> small(idx.begin(), idx.end());
-      w.array(small.data(), small.size());
-    } else {
-      w.array(idx.data(), idx.size());
+  QuantizedVertices q;
+  if (isQuantized(encoding)) {
+    q = quantize(g);
+    putGrid(w, q.grid);
+    if (!g.texcoords.empty()) putTexcoordHeader(w, q);
+  }
+  switch (encoding) {
+    case Encoding::Float32:
+      w.array(g.positions.data(), g.positions.size());
+      w.array(g.normals.data(), g.normals.size());
+      w.array(g.colors.data(), g.colors.size());
+      w.array(g.texcoords.data(), g.texcoords.size());
+      break;
+    case Encoding::Quantized:
+      w.array(q.cell.data(), q.cell.size());
+      w.array(q.offsets.data(), q.offsets.size());
+      w.array(q.normals.data(), q.normals.size());
+      w.array(g.colors.data(), g.colors.size());
+      if (q.texcoord_mode == kTexcoordFixed)
+        w.array(q.texcoords.data(), q.texcoords.size());
+      else
+        w.array(g.texcoords.data(), g.texcoords.size());
+      break;
+    case Encoding::Meshopt: {
+      RecordLayout l = recordLayout(encoding, flags, 0);
+      putVertexStream(w, floatRecords(g, l), nv, l.stride);
+      break;
     }
+    case Encoding::QuantizedMeshopt: {
+      RecordLayout l = recordLayout(encoding, flags, q.texcoord_mode);
+      putVertexStream(w, quantizedRecords(g, q, l), nv, l.stride);
+      break;
+    }
+  }
+  auto putTris = [&](const std::vector<uint32_t>& idx) {
+    if (isMeshopt(encoding))
+      putTriangles(w, idx, nv);
+    else
+      putIndices(w, idx, idx16);
   };
-  putIndices(g.indices);
+  putTris(g.indices);
   if (!g.lod_indices.empty()) {
     w.u32(uint32_t(g.lod_indices.size()));
-    putIndices(g.lod_indices);
+    putTris(g.lod_indices);
   }
   return wrapContainer(kGeometryKind, w.bytes());
 }
@@ -242,10 +594,14 @@ std::vector<uint8_t> encodeGeometry(const GeometryData& g) {
 GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string& path) {
   ByteReader r = payloadReader(kGeometryKind, file, path);
   uint8_t enc = r.u8("encoding");
-  if (enc != uint8_t(Encoding::Float32)) r.fail("unknown geometry encoding " + std::to_string(enc));
+  if (enc > uint8_t(Encoding::QuantizedMeshopt))
+    r.fail("unknown geometry encoding " + std::to_string(enc));
+  const Encoding encoding = Encoding(enc);
   uint8_t flags = r.u8("flags");
-  if (flags & ~uint8_t(kHasNormals | kHasColors | kHasTexcoords | kIndex16 | kHasLod))
-    r.fail("unknown geometry flags");
+  uint8_t known = kHasNormals | kHasColors | kHasTexcoords | kHasLod;
+  if (!isMeshopt(encoding)) known |= kIndex16;  // meshopt's index codec has no width
+  if (flags & ~known)
+    r.fail("unknown geometry flags for encoding " + std::string(encodingName(encoding)));
   uint32_t nv = r.u32("vertex count");
   uint32_t ni = r.u32("index count");
   uint32_t ns = r.u32("submesh count");
@@ -267,31 +623,61 @@ GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string&
     for (float d : s.diffuse)
       if (!std::isfinite(d)) r.fail(at("submesh", i) + ": diffuse colour not finite");
   }
-  r.array(&g.positions, uint64_t(nv) * 3, "positions");
-  for (float v : g.positions)
-    if (!std::isfinite(v)) r.fail("positions contain a non-finite value");
-  if (flags & kHasNormals) r.array(&g.normals, uint64_t(nv) * 3, "normals");
-  if (flags & kHasColors) r.array(&g.colors, uint64_t(nv) * 4, "colors");
-  if (flags & kHasTexcoords) r.array(&g.texcoords, uint64_t(nv) * 2, "texcoords");
-  auto getIndices = [&](std::vector<uint32_t>* out, uint64_t n, const char* field) {
-    if (flags & kIndex16) {
-      std::vector<uint16_t> small;
-      r.array(&small, n, field);
-      out->assign(small.begin(), small.end());
-    } else {
-      r.array(out, n, field);
+  QuantizedVertices q;
+  if (isQuantized(encoding)) {
+    q.grid = getGrid(r);
+    if (flags & kHasTexcoords) getTexcoordHeader(r, &q);
+  }
+  switch (encoding) {
+    case Encoding::Float32:
+      r.array(&g.positions, uint64_t(nv) * 3, "positions");
+      for (float v : g.positions)
+        if (!std::isfinite(v)) r.fail("positions contain a non-finite value");
+      if (flags & kHasNormals) r.array(&g.normals, uint64_t(nv) * 3, "normals");
+      if (flags & kHasColors) r.array(&g.colors, uint64_t(nv) * 4, "colors");
+      if (flags & kHasTexcoords) r.array(&g.texcoords, uint64_t(nv) * 2, "texcoords");
+      break;
+    case Encoding::Quantized:
+      r.array(&q.cell, nv, "position cell indices");
+      r.array(&q.offsets, nv, "position offsets");
+      if (flags & kHasNormals) r.array(&q.normals, nv, "normal indices");
+      if (flags & kHasColors) r.array(&g.colors, uint64_t(nv) * 4, "colors");
+      if (flags & kHasTexcoords) {
+        if (q.texcoord_mode == kTexcoordFixed)
+          r.array(&q.texcoords, uint64_t(nv) * 2, "texcoords");
+        else
+          r.array(&g.texcoords, uint64_t(nv) * 2, "texcoords");
+      }
+      dequantize(r, q, nv, &g);
+      break;
+    case Encoding::Meshopt: {
+      RecordLayout l = recordLayout(encoding, flags, 0);
+      std::vector<uint8_t> rec = getVertexStream(r, nv, l.stride);
+      fromFloatRecords(rec, l, flags, nv, &g);
+      for (float v : g.positions)
+        if (!std::isfinite(v)) r.fail("positions contain a non-finite value");
+      break;
     }
-    for (uint32_t idx : *out)
-      if (idx >= nv)
-        r.fail(std::string(field) + ": index " + std::to_string(idx) + " out of range (" +
-               std::to_string(nv) + " vertices)");
+    case Encoding::QuantizedMeshopt: {
+      RecordLayout l = recordLayout(encoding, flags, q.texcoord_mode);
+      std::vector<uint8_t> rec = getVertexStream(r, nv, l.stride);
+      fromQuantizedRecords(r, rec, l, flags, nv, &q, &g);
+      dequantize(r, q, nv, &g);
+      break;
+    }
+  }
+  auto getTris = [&](std::vector<uint32_t>* out, uint32_t n, const char* field) {
+    if (isMeshopt(encoding))
+      getTriangles(r, out, n, nv, field);
+    else
+      getIndices(r, out, n, flags & kIndex16, nv, field);
   };
-  getIndices(&g.indices, ni, "indices");
+  getTris(&g.indices, ni, "indices");
   if (flags & kHasLod) {
     uint32_t nl = r.u32("lod index count");
     if (nl == 0 || nl % 3)
       r.fail("lod index count " + std::to_string(nl) + " is not a positive multiple of 3");
-    getIndices(&g.lod_indices, nl, "lod indices");
+    getTris(&g.lod_indices, nl, "lod indices");
   }
   r.finish();
   return g;
@@ -382,7 +768,7 @@ std::string encodeManifest(const Manifest& m) {
                  {"geometry_bytes", m.geometry_bytes}};
   j["bounds"] = {{"min", m.bounds.valid() ? vecJson(m.bounds.lo) : vecJson({0, 0, 0})},
                  {"max", m.bounds.valid() ? vecJson(m.bounds.hi) : vecJson({0, 0, 0})}};
-  j["encoding"] = "float32";
+  j["encoding"] = encodingName(m.encoding);
   j["inputs"] = m.inputs;
   json files = json::object();
   for (const auto& [name, e] : m.files) files[name] = {{"bytes", e.bytes}, {"crc32", e.crc}};
@@ -414,7 +800,8 @@ Manifest decodeManifest(const std::string& text, const std::string& path) {
   m.bounds.hi = R.vec(b, "max");
   if (!isFinite(m.bounds.lo) || !isFinite(m.bounds.hi) || !m.bounds.valid())
     R.fail("scene bounds are invalid");
-  if (R.str(j, "encoding") != "float32") R.fail("unknown geometry encoding");
+  std::string encoding = R.str(j, "encoding");
+  if (!parseEncoding(encoding, &m.encoding)) R.fail("unknown geometry encoding '" + encoding + "'");
   const json& in = R.field(j, "inputs");
   if (!in.is_array()) R.fail("field 'inputs' must be an array");
   for (const auto& s : in) {

@@ -48,7 +48,25 @@ struct SkeletonNode {
 };
 
 // ---- geometry -------------------------------------------------------------
-enum class Encoding : uint8_t { Float32 = 0 };
+// How a geometry file stores its vertices and indices (docs/scene-format.md).
+// Every decoder returns the float GeometryData below.
+enum class Encoding : uint8_t {
+  Float32 = 0,           // floats and 16/32-bit indices as they are
+  Quantized = 1,         // the Sensors 2022 quantization (lossy)
+  Meshopt = 2,           // meshoptimizer's vertex and index codecs over Float32 (exact)
+  QuantizedMeshopt = 3,  // the same codecs over Quantized
+};
+inline constexpr Encoding kEncodings[] = {Encoding::Float32, Encoding::Quantized, Encoding::Meshopt,
+                                          Encoding::QuantizedMeshopt};
+// "float32", "quantized", "meshopt", "quantized-meshopt": the manifest's and
+// dmmr-preprocess --encoding's names.
+const char* encodingName(Encoding e);
+// False when `name` is none of them.
+bool parseEncoding(const std::string& name, Encoding* out);
+// Whether decoding gives back exactly what was encoded.
+inline bool isLossless(Encoding e) {
+  return e == Encoding::Float32 || e == Encoding::Meshopt;
+}
 struct SubMesh {
   uint32_t first_index = 0;  // into GeometryData::indices
   uint32_t index_count = 0;  // a multiple of 3 (triangle list)
@@ -112,7 +130,9 @@ std::vector<uint8_t> encodeSkeleton(const std::vector<SkeletonNode>& nodes);
 std::vector<SkeletonNode> decodeSkeleton(const std::vector<uint8_t>& file, const std::string& path);
 std::vector<uint8_t> encodeOccluders(const std::vector<uint32_t>& objects);
 std::vector<uint32_t> decodeOccluders(const std::vector<uint8_t>& file, const std::string& path);
-std::vector<uint8_t> encodeGeometry(const GeometryData& g);
+// Any encoding's file decodes with decodeGeometry; the default writes the
+// Float32 layout, byte for byte what dmmr has always written.
+std::vector<uint8_t> encodeGeometry(const GeometryData& g, Encoding encoding = Encoding::Float32);
 GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string& path);
 std::vector<uint8_t> encodeTexture(const TextureData& t);
 TextureData decodeTexture(const std::vector<uint8_t>& file, const std::string& path);

@@ -776,7 +776,7 @@ TEST(GeometryFormat, RejectsChecksumMismatch) {
 
 TEST(GeometryFormat, RejectsUnknownEncoding) {
   Bytes f = encodeGeometry(sampleGeometry(5, 3, {}, 2));
-  EXPECT_DMMR_ERROR(decodeGeometry(patched(f, 0, {1}), "g.bin"), "g.bin", "encoding 1");
+  EXPECT_DMMR_ERROR(decodeGeometry(patched(f, 0, {4}), "g.bin"), "g.bin", "encoding 4");
 }
 
 TEST(GeometryFormat, RejectsUnknownFlags) {
@@ -890,6 +890,21 @@ TEST(GeometryFormat, RejectsHostileCountsWithoutAllocating) {
   expectFailsWithoutHugeAllocation(with(kGeomIndexCount, 0xFFFFFFFFu, 15), decodeGeom);
   expectFailsWithoutHugeAllocation(with(kGeomIndexCount, 0xFFFFFFFFu, 7), decodeGeom);
   expectFailsWithoutHugeAllocation(with(kGeomSubmeshCount, 0xFFFFFFFFu, 15), decodeGeom);
+}
+
+TEST(GeometryFormat, RejectsHostileCountsInEveryEncodingWithoutAllocating) {
+  // The compact encodings bound their counts by the bytes present too: the
+  // meshopt streams by what a stream of their size can decode to.
+  for (Encoding e : kEncodings) {
+    Bytes f = encodeGeometry(sampleGeometry(40, 30, {true, true, true}, 9), e);
+    for (size_t at : {kGeomVertexCount, kGeomIndexCount})
+      for (uint32_t v : {0xFFFFFFF0u, 3000000u}) {
+        Bytes p = payloadOf(f);
+        for (int i = 0; i < 4; ++i) p[at + size_t(i)] = uint8_t(v >> (8 * i));
+        SCOPED_TRACE(std::string(encodingName(e)) + " field " + std::to_string(at));
+        expectFailsWithoutHugeAllocation(withPayload(f, p), decodeGeom);
+      }
+  }
 }
 
 // ---- textures ----------------------------------------------------------------------
@@ -1162,7 +1177,17 @@ TEST(ManifestFormat, RejectsFormatOtherThanDmmrScene) {
 TEST(ManifestFormat, RejectsUnknownEncoding) {
   json j = sampleJson();
   j["encoding"] = "float16";
-  EXPECT_DMMR_ERROR(decodeManifest(dumped(j), "m.json"), "m.json", "encoding");
+  EXPECT_DMMR_ERROR(decodeManifest(dumped(j), "m.json"), "m.json", "encoding 'float16'");
+}
+
+TEST(ManifestFormat, EncodingIsWrittenAndReadByName) {
+  for (Encoding e : kEncodings) {
+    Manifest m = sampleManifest();
+    m.encoding = e;
+    std::string text = encodeManifest(m);
+    EXPECT_EQ(json::parse(text)["encoding"], encodingName(e));
+    EXPECT_EQ(decodeManifest(text, "m.json"), m);
+  }
 }
 
 TEST(ManifestFormat, RejectsInvalidBounds) {

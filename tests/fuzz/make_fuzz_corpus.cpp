@@ -115,6 +115,21 @@ int main(int argc, char** argv) {
     put("geometry", "index32", wrapContainer(FileKind{"DMMRGEOM", 1, "geometry"}, w.bytes()));
   }
   put("geometry", "empty", encodeGeometry({}));
+  // The compact encodings (formats.h), with every attribute, a level of
+  // detail, and texture coordinates both in the 16-bit range and beyond it.
+  {
+    GeometryData g = triangles(true, true, true, 2);
+    g.lod_indices = {0, 1, 2};
+    GeometryData wide = triangles(true, false, true, 1);
+    wide.texcoords[2] = 5.5f;  // spans more than 2: float texture coordinates
+    GeometryData bare = triangles(false, false, false, 1);
+    for (Encoding e : {Encoding::Quantized, Encoding::Meshopt, Encoding::QuantizedMeshopt}) {
+      std::string name = encodingName(e);
+      put("geometry", name + "_all_attributes", encodeGeometry(g, e));
+      put("geometry", name + "_wide_texcoords", encodeGeometry(wide, e));
+      put("geometry", name + "_plain", encodeGeometry(bare, e));
+    }
+  }
 
   TextureData t;
   t.width = 2;
