@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <future>
@@ -36,15 +37,21 @@ struct VisibleJob {
   Clock::time_point ready;  // when the visibility stage finished it
 };
 
-// Test hook: DMMR_INJECT_FAULT=STAGE:FRAME (visibility or render) makes that
-// stage fail at that frame, so tests reach the mid-run failure path.
+// Test hook: DMMR_INJECT_FAULT=STAGE:FRAME[:HOW] (STAGE visibility or
+// render; HOW throw, the default, kill or hang) makes that stage of client 1
+// fail at that frame, so tests reach the failure paths mid-run.
 void injectFault(const char* stage, uint32_t frame) {
   const char* spec = std::getenv("DMMR_INJECT_FAULT");
-  if (!spec) return;
+  const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
+  if (!spec || (rank && std::strcmp(rank, "1") != 0)) return;
   size_t n = std::strlen(stage);
-  if (std::strncmp(spec, stage, n) == 0 && spec[n] == ':' &&
-      std::strtoul(spec + n + 1, nullptr, 10) == frame)
-    throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(frame));
+  if (std::strncmp(spec, stage, n) != 0 || spec[n] != ':') return;
+  char* rest = nullptr;
+  if (std::strtoul(spec + n + 1, &rest, 10) != frame) return;
+  if (std::strcmp(rest, ":kill") == 0) std::raise(SIGKILL);
+  if (std::strcmp(rest, ":hang") == 0)
+    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+  throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(frame));
 }
 
 void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheStats& after) {

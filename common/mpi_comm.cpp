@@ -63,6 +63,10 @@ void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
 }
 
 Message Comm::recv(int source) {
+  return *recvFor(source, -1);
+}
+
+std::optional<Message> Comm::recvFor(int source, double timeout_s) {
   // Matched probe: the message found is the one received, even when other
   // threads receive too.
   // OpenMPI's blocking probe spins a core while it waits; on a node whose
@@ -72,11 +76,15 @@ Message Comm::recv(int source) {
   MPI_Message handle;
   int found = 0;
   std::chrono::microseconds nap{20};
+  auto start = std::chrono::steady_clock::now();
   for (;;) {
     check(MPI_Improbe(source == kAnySource ? MPI_ANY_SOURCE : source, MPI_ANY_TAG, MPI_COMM_WORLD,
                       &found, &handle, &st),
           "MPI_Improbe");
     if (found) break;
+    if (timeout_s >= 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > timeout_s)
+      return std::nullopt;
     std::this_thread::sleep_for(nap);
     nap = std::min(nap * 2, std::chrono::microseconds(500));
   }

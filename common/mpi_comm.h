@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,8 @@ class Comm {
   void send(int dest, Tag tag, const std::vector<uint8_t>& bytes);
   // Blocks for the next message from `source` (or kAnySource), any tag.
   Message recv(int source);
+  // The same, giving up after `timeout_s` seconds (then empty).
+  std::optional<Message> recvFor(int source, double timeout_s);
   void broadcast(int root, int* value);
   // Ends every rank of the job at once; for when orderly shutdown is impossible.
   [[noreturn]] void abort(int code);

@@ -52,6 +52,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
   dmmr::addCacheOptions(app, c.cache);
+  app.add_option("--client-timeout", s.client_timeout_s,
+                 "seconds a client may stay silent while it owes a sub-frame before the run "
+                 "is aborted naming it")
+      ->check(CLI::PositiveNumber);
   app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");

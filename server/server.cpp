@@ -34,6 +34,7 @@ struct FrameRecord {
   std::vector<uint64_t> region_objects;  // as planned, per client
   Image image;                           // assembled RGBA, top row first
   std::vector<ClientStats> clients;
+  std::vector<uint8_t> from;  // per client: its sub-frame arrived
   int received = 0;
 };
 
@@ -61,6 +62,7 @@ class Assembler {
   void begin(uint32_t frame, FrameRecord rec) {
     rec.image = Image::blank(opts_.view.width, opts_.view.height);
     rec.clients.resize(size_t(clients_));
+    rec.from.assign(size_t(clients_), 0);
     std::lock_guard<std::mutex> lock(mu_);
     pending_[frame] = std::move(rec);
   }
@@ -76,7 +78,9 @@ class Assembler {
   void run() {
     try {
       while (assembled_ < frames_) {
-        Message m = comm_.recv(kAnySource);
+        std::optional<Message> got = comm_.recvFor(kAnySource, opts_.client_timeout_s);
+        if (!got) silent();  // does not return
+        Message& m = *got;
         if (m.tag == Tag::Error) {
           fail("client " + std::to_string(m.source) + ": " + decodeText(m.bytes));
           return;
@@ -89,6 +93,32 @@ class Assembler {
     } catch (const std::exception& e) {
       fail(std::string("server: ") + e.what());
     }
+  }
+
+  // No message for client_timeout_s while sub-frames are owed: names the
+  // clients that owe the oldest frame and ends the job (an orderly shutdown
+  // would wait for them forever). Every frame assembled so far is on disk.
+  [[noreturn]] void silent() {
+    std::string who;
+    uint32_t frame = 0;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!pending_.empty()) {
+        frame = pending_.begin()->first;
+        const FrameRecord& rec = pending_.begin()->second;
+        for (int k = 1; k <= clients_; ++k)
+          if (!rec.from[size_t(k - 1)])
+            who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(k) +
+                   " (rank " + std::to_string(k) + ")";
+      }
+    }
+    std::fprintf(stderr,
+                 "\ndmmr-render: server (rank 0): %s sent nothing for %.0f s while frame %u "
+                 "waited for it: it died or hangs; aborting the run (%u frames assembled and "
+                 "written)\n",
+                 who.empty() ? "no client" : who.c_str(), opts_.client_timeout_s, frame,
+                 assembled_);
+    comm_.abort(3);
   }
 
   void setSendMs(uint32_t frame, double ms) {
@@ -132,6 +162,7 @@ class Assembler {
       }
     }
     rec->clients[size_t(rank - 1)] = sf.stats;
+    rec->from[size_t(rank - 1)] = 1;
     if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     if (++rec->received == clients_) finishFrame(sf.frame, *rec);
@@ -190,9 +221,26 @@ class Assembler {
 
 // Tells every client to stop and waits until each has said Bye, receiving
 // (and dropping) whatever they still send, so no rank is left blocked.
-void shutdownClients(Comm& comm, int clients) {
+void shutdownClients(Comm& comm, int clients, double timeout_s) {
   for (int k = 1; k <= clients; ++k) comm.send(k, Tag::Shutdown, {});
-  for (int byes = 0; byes < clients;) byes += comm.recv(kAnySource).tag == Tag::Bye;
+  std::vector<uint8_t> bye(size_t(clients) + 1, 0);
+  for (int byes = 0; byes < clients;) {
+    std::optional<Message> m = comm.recvFor(kAnySource, timeout_s);
+    if (!m) {
+      std::string who;
+      for (int k = 1; k <= clients; ++k)
+        if (!bye[size_t(k)]) who += " " + std::to_string(k);
+      std::fprintf(stderr,
+                   "dmmr-render: server (rank 0): client(s)%s did not acknowledge shutdown "
+                   "within %.0f s; aborting\n",
+                   who.c_str(), timeout_s);
+      comm.abort(3);
+    }
+    if (m->tag == Tag::Bye && !bye[size_t(m->source)]) {
+      bye[size_t(m->source)] = 1;
+      ++byes;
+    }
+  }
 }
 
 }  // namespace
@@ -273,7 +321,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   assembling.join();
   if (opts.progress) std::fprintf(stderr, "\n");
-  shutdownClients(comm, clients);
+  shutdownClients(comm, clients, opts.client_timeout_s);
   if (assembler.failed()) {
     std::fprintf(stderr, "dmmr-render: %s\n", assembler.error().c_str());
     return 1;

@@ -23,6 +23,11 @@ struct ServerOptions {
   // Weigh objects for the division by what the clients drew lately (see
   // FramePlanner::reportDrawn), rather than by all triangles in the frustum.
   bool visible_weights = true;
+  // A client that sends nothing for this long while it owes a sub-frame has
+  // died or hangs: the server names it and aborts the job (frames already
+  // assembled stay on disk). Generous by default: a first frame that loads
+  // a huge region's geometry from disk can take minutes.
+  double client_timeout_s = 600;
 };
 
 // Returns the process exit status; every message it prints names the rank

@@ -3,6 +3,7 @@
 // zero), and failures must end the run with one clear message, no hang.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <osg/Geode>
@@ -93,6 +94,16 @@ void flipByte(const std::string& file, std::streamoff offset) {
   f.put(c);
 }
 
+// Frames on disk after a failed run are whole and equal the reference's.
+void expectFramesIntact(const std::string& reference, const std::string& out) {
+  if (!fs::exists(out)) return;
+  for (const auto& e : fs::directory_iterator(out)) {
+    std::string name = e.path().filename();
+    ASSERT_TRUE(name.starts_with("frame_") && name.ends_with(".png")) << "left behind: " << name;
+    EXPECT_EQ(compareImageFiles(reference + "/" + name, e.path()).differing_pixels, 0) << name;
+  }
+}
+
 SmallScene& smallScene() {
   static SmallScene* s = new SmallScene;  // built once per test binary
   return *s;
@@ -174,12 +185,34 @@ TEST_P(StageFailure, MidRunEndsEveryRankWithItsMessage) {
       << log;
   // Whatever frames were assembled before the failure are whole and exact
   // (which ones depends on how far the pipeline got).
-  if (fs::exists(out))
-    for (const auto& e : fs::directory_iterator(out)) {
-      std::string name = e.path().filename();
-      ASSERT_TRUE(name.starts_with("frame_") && name.ends_with(".png")) << "left behind: " << name;
-      EXPECT_EQ(compareImageFiles(s.reference + "/" + name, e.path()).differing_pixels, 0) << name;
-    }
+  expectFramesIntact(s.reference, out);
+}
+
+TEST(DistributedErrors, AClientKilledMidRunEndsTheRunNamingIt) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "killed";
+  int status = 0;
+  std::string log = s.render(2, out, "", &status, "", "DMMR_INJECT_FAULT=render:2:kill");
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung\n" << log;
+  EXPECT_NE(log.find("rank 1"), std::string::npos) << log;
+  expectFramesIntact(s.reference, out);
+}
+
+TEST(DistributedErrors, AClientThatHangsEndsTheRunWithinTheTimeoutNamingIt) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "hung";
+  int status = 0;
+  auto t0 = std::chrono::steady_clock::now();
+  std::string log =
+      s.render(2, out, "--client-timeout 3", &status, "", "DMMR_INJECT_FAULT=render:2:hang");
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung\n" << log;
+  EXPECT_LT(seconds, 60) << log;
+  EXPECT_NE(log.find("client 1 (rank 1) sent nothing for 3 s"), std::string::npos) << log;
+  expectFramesIntact(s.reference, out);
+  EXPECT_TRUE(fs::exists(out + "/frame_000000.png")) << "frame 0 was done before the hang";
 }
 
 INSTANTIATE_TEST_SUITE_P(Stages, StageFailure, testing::Values("visibility", "render"));
