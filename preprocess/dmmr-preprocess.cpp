@@ -21,8 +21,22 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--lod-error", o.lod_error, "occluder level of detail: relative error bound")
       ->check(CLI::Range(0.0, 1.0));
+  std::string encoding = dmmr::encodingName(o.encoding);
+  app.add_option("--encoding", encoding,
+                 "geometry encoding: float32 (default, exact), meshopt (exact), quantized, "
+                 "quantized-meshopt (lossy; see docs/scene-format.md)")
+      ->check(CLI::Validator(
+          [](std::string& name) {
+            dmmr::Encoding e;
+            return dmmr::parseEncoding(name, &e)
+                       ? std::string()
+                       : "unknown encoding '" + name +
+                             "' (one of float32, meshopt, quantized, quantized-meshopt)";
+          },
+          "ENCODING"));
   app.add_flag("!--no-progress", o.progress, "do not print progress");
   CLI11_PARSE(app, argc, argv);
+  dmmr::parseEncoding(encoding, &o.encoding);  // checked above
   try {
     dmmr::PreprocessStats s = dmmr::preprocess(o);
     if (s.nonfinite_vertices)
@@ -44,6 +58,8 @@ int main(int argc, char** argv) {
         (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
         double(s.bytes_written) / 1e6, s.seconds,
         s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
+    if (o.encoding != dmmr::Encoding::Float32)
+      std::printf("%s: geometry encoding %s\n", o.out.c_str(), dmmr::encodingName(o.encoding));
     if (s.lod_geometries)
       std::printf("%s: occluder levels of detail for %llu geometries, %llu triangles\n",
                   o.out.c_str(), (unsigned long long)s.lod_geometries,

@@ -315,7 +315,7 @@ uint32_t SceneWriter::geometryFor(const osg::Node* key,
   uint32_t index = uint32_t(geometries_.size());
   geometries_.push_back(info);
   geometry_index_[k] = index;
-  writeFile(geometryFileName(index), encodeGeometry(g));
+  writeFile(geometryFileName(index), encodeGeometry(g, opts_.encoding));
   stats_.unique_triangles += info.triangles;
   return index;
 }
@@ -477,6 +477,7 @@ void SceneWriter::finish(PreprocessStats* stats) {
   manifest_.triangles = stats_.triangles;
   manifest_.unique_triangles = stats_.unique_triangles;
   manifest_.bounds = skeleton_[0].box;
+  manifest_.encoding = opts_.encoding;
   for (const auto& in : opts_.inputs) manifest_.inputs.push_back(fs::absolute(in).string());
   writeFileAtomic(tmp_ + "/manifest.json", encodeManifest(manifest_));
   stats_.objects = objects_.size();

@@ -30,6 +30,10 @@ struct PreprocessOptions {
   double lod_ratio = 0;
   double lod_error = 0.01;
   uint64_t lod_min_triangles = 64;  // smaller geometries get no level of detail
+  // How geometry files store vertices and indices (formats.h); recorded in
+  // the manifest. The default is exact; Quantized and QuantizedMeshopt are
+  // lossy (docs/scene-format.md gives their error bounds).
+  Encoding encoding = Encoding::Float32;
 };
 
 struct PreprocessStats {

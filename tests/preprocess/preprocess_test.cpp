@@ -2,9 +2,11 @@
 // the real models beside the checkout.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <osg/Geode>
 #include <osg/Geometry>
 #include <osg/Material>
@@ -13,7 +15,9 @@
 #include <osgDB/WriteFile>
 #include <osgUtil/Statistics>
 
+#include "atomic_file.h"
 #include "error.h"
+#include "formats.h"
 #include "preprocess.h"
 #include "scene.h"
 #include "test_support.h"
@@ -313,6 +317,125 @@ TEST(Preprocess, CommandLineReportsErrorsWithNonZeroExit) {
       &status);
   EXPECT_EQ(status, 1);
   EXPECT_NE(out.find("missing.obj: no such file"), std::string::npos) << out;
+}
+
+// ---- geometry encodings (--encoding) -----------------------------------------
+
+PreprocessStats runEncoded(const std::string& input, const std::string& out, Encoding e) {
+  PreprocessOptions o;
+  o.inputs = {input};
+  o.out = out;
+  o.progress = false;
+  o.encoding = e;
+  return preprocess(o);
+}
+
+TEST(Preprocess, EncodingIsRecordedInTheManifestAndEveryFileUsesIt) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  root->addChild(cube({0, 0, 0}, true));
+  root->addChild(cube({3, 0, 0}, false));
+  std::string model = writeModel(dir, root.get(), "cubes.osgb");
+  Scene f32;
+  for (Encoding e : kEncodings) {
+    std::string out = dir / encodingName(e);
+    runEncoded(model, out, e);
+    Scene s = loadScene(out);
+    EXPECT_EQ(s.manifest.encoding, e);
+    std::ifstream m(out + "/manifest.json");
+    std::string text((std::istreambuf_iterator<char>(m)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find(std::string("\"encoding\": \"") + encodingName(e) + "\""),
+              std::string::npos)
+        << text;
+    for (uint32_t g = 0; g < s.manifest.geometries; ++g) {
+      std::vector<uint8_t> bytes = readFileBytes(out + "/" + geometryFileName(g));
+      EXPECT_EQ(bytes.at(20), uint8_t(e)) << "the payload's encoding byte";
+      GeometryData geo = loadGeometry(s, g);
+      if (e == Encoding::Float32) continue;
+      GeometryData ref = loadGeometry(loadScene(dir / "float32"), g);
+      if (isLossless(e))
+        EXPECT_EQ(geo, ref) << encodingName(e);
+      else
+        EXPECT_EQ(geo.indices, ref.indices) << encodingName(e);
+    }
+    // Objects, bounds and the rest do not depend on the encoding.
+    if (e == Encoding::Float32) f32 = s;
+    EXPECT_EQ(s.objects, f32.objects);
+    EXPECT_EQ(s.skeleton, f32.skeleton);
+  }
+}
+
+TEST(Preprocess, DefaultEncodingIsFloat32) {
+  EXPECT_EQ(PreprocessOptions{}.encoding, Encoding::Float32);
+}
+
+TEST(Preprocess, FarFromOriginQuantizesAsAtTheOrigin) {
+  // The same triangle fan in double at the origin and 10^6 away: recentred
+  // in double, both quantize in the same local frame, with the same error
+  // relative to the geometry's extent.
+  auto fan = [](double offset) {
+    auto* v = new osg::Vec3dArray;
+    for (int i = 0; i < 200; ++i) {
+      double a = i * 0.1;
+      v->push_back(
+          {offset + 10 * std::cos(a) * (1 + i * 0.01), offset + 7 * std::sin(a), 0.001 * i * i});
+    }
+    auto* geom = new osg::Geometry;
+    geom->setVertexArray(v);
+    geom->addPrimitiveSet(new osg::DrawArrays(GL_TRIANGLE_FAN, 0, 200));
+    osg::ref_ptr<osg::Geode> g = new osg::Geode;
+    g->addDrawable(geom);
+    return g;
+  };
+  TempDir dir;
+  double rel[2];
+  for (int k = 0; k < 2; ++k) {
+    std::string model =
+        writeModel(dir, fan(k ? 1e6 : 0).get(), "fan" + std::to_string(k) + ".osgb");
+    std::string exact = dir / ("exact" + std::to_string(k)), q = dir / ("q" + std::to_string(k));
+    runEncoded(model, exact, Encoding::Float32);
+    runEncoded(model, q, Encoding::Quantized);
+    Scene se = loadScene(exact), sq = loadScene(q);
+    GeometryData a = loadGeometry(se, 0), b = loadGeometry(sq, 0);
+    ASSERT_EQ(a.positions.size(), b.positions.size());
+    double err = 0, lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (size_t i = 0; i < a.positions.size(); ++i) {
+      err = std::max(err, std::fabs(double(a.positions[i]) - b.positions[i]));
+      lo[i % 3] = std::min(lo[i % 3], double(a.positions[i]));
+      hi[i % 3] = std::max(hi[i % 3], double(a.positions[i]));
+    }
+    rel[k] = err / std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    // And the world positions the renderer computes stay within that error.
+    for (size_t v = 0; v < b.vertexCount(); ++v) {
+      Vec3d local{b.positions[3 * v], b.positions[3 * v + 1], b.positions[3 * v + 2]};
+      Vec3d exactLocal{a.positions[3 * v], a.positions[3 * v + 1], a.positions[3 * v + 2]};
+      Vec3d d = sq.objects[0].transform.transformPoint(local) -
+                se.objects[0].transform.transformPoint(exactLocal);
+      EXPECT_LE(length(d), 2 * err + 1e-9);
+    }
+  }
+  EXPECT_GT(rel[0], 0);
+  EXPECT_LT(rel[1], 1.5 * rel[0]) << rel[0] << " " << rel[1];
+  EXPECT_LT(rel[0], 1.5 * rel[1]) << rel[0] << " " << rel[1];
+  EXPECT_LT(rel[1], 1e-4);  // 100 cells for 200 vertices: a few 10^-5 of the extent
+}
+
+TEST(Preprocess, CommandLineTakesAnEncodingAndRefusesUnknownOnes) {
+  TempDir dir;
+  std::string model = writeModel(dir, cube({0, 0, 0}, true).get(), "cube.osgb");
+  int status = 0;
+  std::string out = test::runCapture(test::tool("dmmr-preprocess") + " " + model + " -o " +
+                                         (dir / "scene") + " --encoding quantized-meshopt",
+                                     &status);
+  EXPECT_EQ(status, 0) << out;
+  EXPECT_EQ(loadScene(dir / "scene").manifest.encoding, Encoding::QuantizedMeshopt);
+  out = test::runCapture(
+      test::tool("dmmr-preprocess") + " " + model + " -o " + (dir / "bad") + " --encoding float16",
+      &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("unknown encoding 'float16'"), std::string::npos) << out;
+  EXPECT_NE(out.find("quantized-meshopt"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "bad"));
 }
 
 // Every real model beside the checkout: triangle counts match OSG's own.
