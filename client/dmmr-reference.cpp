@@ -15,6 +15,9 @@ int main(int argc, char** argv) {
   app.add_option("--backend", backend, "osmesa or egl")->check(CLI::IsMember({"osmesa", "egl"}));
   app.add_option("--egl-device", o.context.egl_device, "EGL device index (-1: surfaceless)");
   app.add_flag("!--no-progress", o.progress, "do not print progress");
+  app.add_option("--from-frame", o.from_frame,
+                 "resume an interrupted run: render from this frame on (earlier frames and "
+                 "their stats rows are kept)");
   dmmr::addCacheOptions(app, o.cache);
   app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
   app.add_flag("--exact-visible", o.exact_visible,

@@ -12,6 +12,7 @@
 #include "host_cache.h"
 #include "image.h"
 #include "scene.h"
+#include "stats_csv.h"
 #include "walkthrough.h"
 
 namespace dmmr {
@@ -64,6 +65,12 @@ ExactVisible exactVisible(const Scene& scene, GpuCache& meshes, Renderer& r, con
 void runReference(const ReferenceOptions& opts) {
   Scene scene = loadScene(opts.scene);
   Walkthrough path = readWalkthrough(opts.walkthrough);
+  if (opts.from_frame >= path.points.size())
+    throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
+                opts.walkthrough + " (" + std::to_string(path.points.size()) + " frames)");
+  std::string header = "frame,frame_ms,draw_ms,objects,triangles";
+  header += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles\n" : "\n";
+  std::string csv = resumeStatsCsv(opts.stats, header, opts.from_frame);
   std::filesystem::create_directories(opts.out);
 
   auto ctx = createContext(opts.context);
@@ -76,12 +83,10 @@ void runReference(const ReferenceOptions& opts) {
   RendererBackend backend(renderer);
   GpuCache meshes(scene, host, backend, opts.cache.gpu_budget, opts.cache.eviction);
 
-  std::string csv = "frame,frame_ms,draw_ms,objects,triangles";
-  csv += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles\n" : "\n";
   double near = opts.view.near > 0 ? opts.view.near : defaultNear(scene);
   Rect full{0, 0, opts.view.width, opts.view.height};
   std::vector<uint8_t> pixels;
-  for (size_t f = 0; f < path.points.size(); ++f) {
+  for (size_t f = opts.from_frame; f < path.points.size(); ++f) {
     auto t0 = Clock::now();
     Camera cam =
         cameraAt(path.points[f], opts.view.width, opts.view.height, opts.view.fovy_deg, near);

@@ -26,6 +26,9 @@ struct ReferenceOptions {
   // The same geometry cache as the clients' (one GPU level); unlimited by
   // default, so every geometry is uploaded once and kept.
   CacheOptions cache;
+  // Resume an interrupted run: render frames from this one on; the stats
+  // CSV keeps the rows of the frames before it.
+  uint32_t from_frame = 0;
 };
 
 // Throws Error on bad input; frames already written stay on disk. An

@@ -51,6 +51,9 @@ int main(int argc, char** argv) {
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
+  app.add_option("--from-frame", s.from_frame,
+                 "resume an interrupted run: render from this frame on (earlier frames and "
+                 "their stats rows are kept)");
   dmmr::addCacheOptions(app, c.cache);
   app.add_option("--client-timeout", s.client_timeout_s,
                  "seconds a client may stay silent while it owes a sub-frame before the run "

@@ -15,6 +15,7 @@
 #include "plan.h"
 #include "protocol.h"
 #include "scene.h"
+#include "stats_csv.h"
 #include "walkthrough.h"
 
 namespace dmmr {
@@ -38,23 +39,34 @@ struct FrameRecord {
   int received = 0;
 };
 
+// The stats CSV's header line for `clients` clients.
+std::string statsHeader(int clients) {
+  std::string h =
+      "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
+      "objects_in_frustum,triangles_in_frustum";
+  for (int k = 1; k <= clients; ++k)
+    for (const char* c :
+         {"objects",     "occluders",  "queried",    "visible",   "triangles",    "prepare_ms",
+          "retrieve_ms", "pass_ms",    "load_ms",    "render_ms", "readback_ms",  "compress_ms",
+          "send_ms",     "bytes_raw",  "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
+          "ram_misses",  "disk_bytes", "uncached",   "skipped",   "gpu_resident", "ram_resident"})
+      h += ",c" + std::to_string(k) + "_" + c;
+  return h + "\n";
+}
+
 class Assembler {
  public:
   // `planner`, when given, hears which objects the clients drew.
+  // `csv`: the stats CSV so far (its header, and rows kept from a resumed run).
   Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames,
-            FramePlanner* planner)
-      : comm_(comm), opts_(opts), clients_(clients), frames_(frames), planner_(planner) {
-    csv_ =
-        "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
-        "objects_in_frustum,triangles_in_frustum";
-    for (int k = 1; k <= clients; ++k)
-      for (const char* c :
-           {"objects",     "occluders",  "queried",    "visible",   "triangles",    "prepare_ms",
-            "retrieve_ms", "pass_ms",    "load_ms",    "render_ms", "readback_ms",  "compress_ms",
-            "send_ms",     "bytes_raw",  "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
-            "ram_misses",  "disk_bytes", "uncached",   "skipped",   "gpu_resident", "ram_resident"})
-        csv_ += ",c" + std::to_string(k) + "_" + c;
-    csv_ += "\n";
+            FramePlanner* planner, std::string csv)
+      : comm_(comm),
+        opts_(opts),
+        clients_(clients),
+        frames_(frames),
+        planner_(planner),
+        csv_(std::move(csv)) {
+    assembled_ = opts.from_frame;
     last_done_ = Clock::now();
   }
 
@@ -255,11 +267,15 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   Scene scene;
   Walkthrough path;
-  std::string problem;
+  std::string problem, csv;
   try {
     scene = loadScene(opts.scene);
     path = readWalkthrough(opts.walkthrough);
+    if (opts.from_frame >= path.points.size())
+      throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
+                  opts.walkthrough + " (" + std::to_string(path.points.size()) + " frames)");
     std::filesystem::create_directories(opts.out);
+    csv = resumeStatsCsv(opts.stats, statsHeader(clients), opts.from_frame);
   } catch (const std::exception& e) {
     problem = e.what();
   }
@@ -288,9 +304,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   double near = v.near > 0 ? v.near : defaultNear(scene);
   FramePlanner planner(scene);
   Assembler assembler(comm, opts, clients, path.points.size(),
-                      opts.visible_weights ? &planner : nullptr);
+                      opts.visible_weights ? &planner : nullptr, std::move(csv));
   std::thread assembling([&] { assembler.run(); });
-  for (uint32_t f = 0; f < path.points.size(); ++f) {
+  for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
     if (!assembler.waitForRoom(f)) break;
     FrameRecord rec;
     rec.started = Clock::now();

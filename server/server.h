@@ -28,6 +28,9 @@ struct ServerOptions {
   // assembled stay on disk). Generous by default: a first frame that loads
   // a huge region's geometry from disk can take minutes.
   double client_timeout_s = 600;
+  // Resume an interrupted run: render frames from this one on; the stats
+  // CSV keeps the rows of the frames before it.
+  uint32_t from_frame = 0;
 };
 
 // Returns the process exit status; every message it prints names the rank

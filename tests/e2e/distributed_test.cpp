@@ -215,6 +215,50 @@ TEST(DistributedErrors, AClientThatHangsEndsTheRunWithinTheTimeoutNamingIt) {
   EXPECT_TRUE(fs::exists(out + "/frame_000000.png")) << "frame 0 was done before the hang";
 }
 
+// A run killed at frame 2, resumed with --from-frame 2: the frames and the
+// stats rows equal an uninterrupted run's.
+TEST(DistributedErrors, AnInterruptedRunResumesFromAFrame) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "resumed", csv = out + ".csv";
+  int status = 0;
+  s.render(2, out, "--stats " + csv, &status, "", "DMMR_INJECT_FAULT=render:2:kill");
+  ASSERT_NE(status, 0);
+  ASSERT_TRUE(fs::exists(out + "/frame_000001.png"));
+  ASSERT_FALSE(fs::exists(out + "/frame_000003.png"));
+  std::string log = s.render(2, out, "--stats " + csv + " --from-frame 2", &status);
+  ASSERT_EQ(status, 0) << log;
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  for (int f = 0; f < 4; ++f) {
+    ASSERT_TRUE(std::getline(in, line)) << "missing the row of frame " << f;
+    EXPECT_TRUE(line.starts_with(std::to_string(f) + ",")) << line;
+  }
+  EXPECT_FALSE(std::getline(in, line)) << "extra row: " << line;
+  // Resuming beyond the walkthrough is refused.
+  log = s.render(2, out, "--from-frame 4", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("--from-frame 4 is not a frame of"), std::string::npos) << log;
+}
+
+TEST(Reference, AnInterruptedRunResumesFromAFrame) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "reference-resumed";
+  fs::create_directories(out);
+  fs::copy_file(s.reference + "/frame_000000.png", out + "/frame_000000.png");
+  int status = 0;
+  std::string log = test::runCapture(
+      test::tool("dmmr-reference") + " --no-progress --width 160 --height 120 --scene " + s.scene +
+          " --walkthrough " + s.path + " --out " + out + " --from-frame 1",
+      &status);
+  ASSERT_EQ(status, 0) << log;
+  for (const FrameDiff& d : compareDirectories(s.reference, out))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+}
+
 INSTANTIATE_TEST_SUITE_P(Stages, StageFailure, testing::Values("visibility", "render"));
 
 TEST(DistributedErrors, CorruptGeometryIsSkippedAndCountedAndTheRunGoesOn) {
