@@ -6,9 +6,12 @@
 // (--query-threshold, --keep-frames) must run to the end.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <osg/Geode>
+#include <osg/ShapeDrawable>
 #include <osgDB/WriteFile>
 #include <sstream>
 #include <string>
@@ -215,4 +218,59 @@ TEST(VisibilityStageApproximate, ThresholdAndKeepFramesComplete) {
   std::printf("--query-threshold 50 --keep-frames 10: %lld differing pixels over %u frames\n",
               (long long)differing, kFlyFrames);
   EXPECT_EQ(readCsv(out + ".csv").size(), kFlyFrames);
+}
+
+// A closed room (one box, seen from inside through its back faces) with
+// objects inside and a row of pillars outside; the camera walks in through
+// a wall, stands inside objects' bounding boxes and crosses them with the
+// near plane. Conservative culling must still draw everything that shows,
+// with 1 and 3 clients, and the division must still tile the frame.
+TEST(VisibilityHardCases, CameraInsideObjectsAndThroughAWallIsExact) {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  auto add = [&](osg::Shape* shape, const osg::Vec4& colour) {
+    auto* geode = new osg::Geode;
+    auto* sd = new osg::ShapeDrawable(shape);
+    sd->setColor(colour);
+    geode->addDrawable(sd);
+    root->addChild(geode);
+  };
+  add(new osg::Box({0, 0, 2}, 12, 12, 4), {0.7f, 0.7f, 0.6f, 1});  // the room
+  for (int i = 0; i < 9; ++i)                                      // inside
+    add(new osg::Sphere({-4.f + i, float((i * 7) % 5) - 2.f, 1.f}, 0.4f),
+        {0.2f + 0.08f * i, 0.3f, 0.9f - 0.08f * i, 1});
+  add(new osg::Box({0.5f, 0, 1}, 0.6f, 9, 2), {0.3f, 0.8f, 0.3f, 1});  // a screen the path crosses
+  for (int i = 0; i < 6; ++i)                                          // outside
+    add(new osg::Cylinder({-10.f, -6.f + 2.5f * i, 2}, 0.5f, 4), {0.9f, 0.4f, 0.2f, 1});
+  std::string model = dir / "room.osgb";
+  ASSERT_TRUE(osgDB::writeNodeFile(*root, model));
+  PreprocessOptions o;
+  o.inputs = {model};
+  o.out = dir / "room.scene";
+  o.progress = false;
+  preprocess(o);
+  // From outside the room (-X), through its wall, through the screen, on to
+  // the far side, looking along +X and a little to the side.
+  Walkthrough w;
+  for (int f = 0; f < 10; ++f) {
+    Vec3d eye{-9.0 + 1.6 * f, 0.3 * std::sin(f), 1.2};
+    w.points.push_back({0.1 * f, eye, lookAtRotation(eye, eye + Vec3d{1, 0.25, -0.05}, {0, 0, 1})});
+  }
+  std::string path = dir / "room.path", ref = dir / "room-reference";
+  writeWalkthrough(path, w);
+  int status = 0;
+  std::string log =
+      test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
+                           o.out + " --walkthrough " + path + " --out " + ref,
+                       &status);
+  ASSERT_EQ(status, 0) << log;
+  for (int clients : {1, 3}) {
+    std::string out = dir / ("room" + std::to_string(clients));
+    log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+                               test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
+                               o.out + " --walkthrough " + path + " --out " + out,
+                           &status);
+    ASSERT_EQ(status, 0) << log;
+    EXPECT_EQ(differingPixels(ref, out, 10), 0) << clients << " clients";
+  }
 }
