@@ -19,10 +19,14 @@ int main(int argc, char** argv) {
                  "resume an interrupted run: render from this frame on (earlier frames and "
                  "their stats rows are kept)");
   dmmr::addCacheOptions(app, o.cache);
-  app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
+  dmmr::addConfigOption(app);
   app.add_flag("--exact-visible", o.exact_visible,
                "add the exactly visible objects and triangles (object-id render) to --stats");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return dmmr::exitParse(app, e);
+  }
   try {
     o.scene = paths.scene;
     o.walkthrough = paths.walkthrough;

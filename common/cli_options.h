@@ -3,6 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdio>
 #include <string>
 
 #include "camera.h"
@@ -26,6 +27,25 @@ inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view) {
       ->check(CLI::Range(1.0, 179.0));
   app.add_option("--near", view.near, "near plane distance (default: scene diagonal * 1e-5)")
       ->check(CLI::PositiveNumber);
+}
+
+// --config FILE: a run config (TOML or INI) with the options' long names as
+// keys; the command line overrides it. Unknown keys are errors, not
+// silently ignored settings.
+inline void addConfigOption(CLI::App& app) {
+  app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
+  app.allow_config_extras(CLI::config_extras_mode::error);
+}
+
+// app.exit(e) for a parse error, but an error in the run config names the
+// config file (CLI11's own message does not).
+inline int exitParse(CLI::App& app, const CLI::ParseError& e) {
+  if (dynamic_cast<const CLI::ConfigError*>(&e)) {
+    std::string file = app.get_config_ptr() ? app.get_config_ptr()->as<std::string>() : "";
+    std::fprintf(stderr, "%s: %s: %s\n", app.get_name().c_str(), file.c_str(), e.what());
+    return 1;
+  }
+  return app.exit(e);
 }
 
 }  // namespace dmmr

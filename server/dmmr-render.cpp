@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
                  "seconds a client may stay silent while it owes a sub-frame before the run "
                  "is aborted naming it")
       ->check(CLI::PositiveNumber);
-  app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
+  dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
   bool quiet = rankEnv && std::atoi(rankEnv) != 0;
@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (quiet) return e.get_exit_code() == 0 ? 0 : 1;
-    return app.exit(e);
+    return dmmr::exitParse(app, e);
   }
   s.scene = c.scene = paths.scene;
   s.walkthrough = paths.walkthrough;

@@ -161,3 +161,17 @@ TEST(CacheOptions, ABadBudgetIsRefusedWithItsReason) {
   EXPECT_NE(status, 0);
   EXPECT_NE(log.find("unknown unit"), std::string::npos) << log;
 }
+
+TEST(CacheOptions, AConfigWithAnUnknownKeyIsRefusedNamingTheFile) {
+  ReplicatedPlant& s = scene();
+  std::string config = s.dir / "typo.toml";
+  std::ofstream(config) << "ram-budjet = \"1M\"\n";
+  int status = 0;
+  std::string log = test::runCapture(test::tool("dmmr-reference") + " --no-progress --scene " +
+                                         s.scene + " --walkthrough " + s.path + " --out " +
+                                         (s.dir / "typo") + " --config " + config,
+                                     &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find(config + ": "), std::string::npos) << log;
+  EXPECT_NE(log.find("ram-budjet"), std::string::npos) << log;
+}
