@@ -385,17 +385,28 @@ std::string decodeTriangles(const uint8_t* stream, size_t size, const uint8_t* r
     if (used < 4 && (rotations[b] >> (2 * used)))
       return "triangle rotations: unused bits set in the last byte";
   }
+  // Branch-free: the rotations are as good as random, so branches on them
+  // would mispredict every other triangle.
+  static constexpr uint8_t kPerm[4][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 1, 2}};
+  uint32_t largest = 0;
+  bool rotation3 = false;
   for (size_t t = 0; t < triangles; ++t) {
     int r = (rotations[t / 4] >> (2 * (t % 4))) & 3;
-    if (r == 3) return "triangle rotation 3 (of 0..2) for triangle " + std::to_string(t);
+    rotation3 |= r == 3;
     uint32_t* tri = indices + 3 * t;
     uint32_t d[3] = {tri[0], tri[1], tri[2]};
-    for (int k = 0; k < 3; ++k) tri[k] = d[(k + r) % 3];
+    for (int k = 0; k < 3; ++k) tri[k] = d[kPerm[r][k]];
+    largest = std::max({largest, d[0], d[1], d[2]});
   }
-  for (size_t i = 0; i < count; ++i)
-    if (indices[i] >= vertex_count)
-      return "index " + std::to_string(indices[i]) + " out of range (" +
-             std::to_string(vertex_count) + " vertices)";
+  if (rotation3)
+    for (size_t t = 0; t < triangles; ++t)  // the first one, for the message
+      if (((rotations[t / 4] >> (2 * (t % 4))) & 3) == 3)
+        return "triangle rotation 3 (of 0..2) for triangle " + std::to_string(t);
+  if (count && largest >= vertex_count)
+    for (size_t i = 0; i < count; ++i)  // the first one, for the message
+      if (indices[i] >= vertex_count)
+        return "index " + std::to_string(indices[i]) + " out of range (" +
+               std::to_string(vertex_count) + " vertices)";
   return "";
 }
 
