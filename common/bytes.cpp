@@ -4,6 +4,10 @@
 
 namespace dmmr {
 
+uint32_t manifestCrc(const std::vector<uint8_t>& file) {
+  return crc32(file.data(), file.size() < 4 ? file.size() : file.size() - 4);
+}
+
 uint32_t crc32(const uint8_t* data, size_t size, uint32_t seed) {
   uLong c = seed;
   while (size > 0) {  // zlib takes uInt lengths

@@ -21,6 +21,13 @@ namespace dmmr {
 
 uint32_t crc32(const uint8_t* data, size_t size, uint32_t seed = 0);
 
+// The CRC a scene manifest lists for a file: CRC-32 of all but its last 4
+// bytes, which for a container (below) is the CRC it stores. The CRC-32 of
+// a whole intact container, stored CRC included, is one constant (the CRC
+// residue), so it could not tell one intact file from another: a geometry
+// file swapped for another would pass.
+uint32_t manifestCrc(const std::vector<uint8_t>& file);
+
 class ByteWriter {
  public:
   void u8(uint8_t v) { out_.push_back(v); }

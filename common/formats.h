@@ -106,7 +106,8 @@ struct FileEntry {
   friend bool operator==(const FileEntry&, const FileEntry&) = default;
 };
 struct Manifest {
-  static constexpr uint32_t kVersion = 1;
+  // 2: file CRCs are manifestCrc (bytes.h), which tells intact files apart.
+  static constexpr uint32_t kVersion = 2;
   uint32_t version = kVersion;
   uint64_t objects = 0, geometries = 0, textures = 0, occluders = 0;
   uint64_t triangles = 0;         // over all objects (instances counted each)

@@ -20,7 +20,7 @@ std::vector<uint8_t> readChecked(const Scene& s, const std::string& name) {
     throw Error(fileError(path, "size " + std::to_string(bytes.size()) +
                                     " differs from the manifest's " +
                                     std::to_string(it->second.bytes)));
-  if (crc32(bytes.data(), bytes.size()) != it->second.crc)
+  if (manifestCrc(bytes) != it->second.crc)
     throw Error(fileError(path, "checksum differs from the manifest's (file is corrupt)"));
   return bytes;
 }

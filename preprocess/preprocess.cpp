@@ -440,7 +440,7 @@ void SceneWriter::writeFile(const std::string& name, const std::vector<uint8_t>&
   if (!f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size())) ||
       !f.flush())
     throw Error(fileError(path, "write failed (disk full?)"));
-  manifest_.files[name] = {bytes.size(), crc32(bytes.data(), bytes.size())};
+  manifest_.files[name] = {bytes.size(), manifestCrc(bytes)};
   stats_.bytes_written += bytes.size();
 }
 

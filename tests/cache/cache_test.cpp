@@ -252,6 +252,32 @@ TEST(HostCache, ACorruptFileIsSkippedOnceAndNeverReadAgain) {
   EXPECT_TRUE(cache.get(3)) << "one bad file stops nothing else";
 }
 
+TEST(HostCache, AGeometryFileSwappedForAnotherIntactOneIsCaught) {
+  PlantFixture& p = plant();
+  TempDir d;
+  fs::copy(p.scene.dir, d / "scene", fs::copy_options::recursive);
+  // Two geometry files of the same size, each intact, traded places.
+  uint32_t a = 0, b = 0;
+  for (uint32_t i = 0; i < p.geometries() && !b; ++i)
+    for (uint32_t j = 0; j < i && !b; ++j)
+      if (p.sizes[i] == p.sizes[j] && loadGeometry(p.scene, i) != loadGeometry(p.scene, j)) {
+        a = j;
+        b = i;
+      }
+  ASSERT_NE(b, 0u) << "no two different geometries of one size to swap";
+  std::string fa = d / ("scene/" + geometryFileName(a)), fb = d / ("scene/" + geometryFileName(b));
+  fs::rename(fa, d / "tmp.bin");
+  fs::rename(fb, fa);
+  fs::rename(d / "tmp.bin", fb);
+  Scene scene = loadScene(d / "scene");
+  HostCache cache(scene, {});
+  testing::internal::CaptureStderr();
+  EXPECT_FALSE(cache.get(a));
+  EXPECT_FALSE(cache.get(b));
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("checksum differs from the manifest"), std::string::npos) << err;
+}
+
 // Two stages' worth of threads reading through one small cache while the
 // loader prefetches: every geometry decodes as on disk, the budget holds.
 TEST(HostCache, ConcurrentGetsAndPrefetchesAgree) {

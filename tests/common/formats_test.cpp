@@ -1054,7 +1054,7 @@ TEST(ManifestFormat, RandomBoundsRoundTripExactly) {
 TEST(ManifestFormat, WritesDocumentedFields) {
   json j = sampleJson();
   EXPECT_EQ(j["format"], "dmmr-scene");
-  EXPECT_EQ(j["version"], 1);
+  EXPECT_EQ(j["version"], 2);
   EXPECT_EQ(j["counts"]["objects"], 12);
   EXPECT_EQ(j["encoding"], "float32");
   EXPECT_EQ(j["files"]["bounds.bin"]["crc32"], 0xFFFFFFFFu);
@@ -1150,7 +1150,8 @@ TEST(ManifestFormat, RejectsCrcOutOfRange) {
 }
 
 TEST(ManifestFormat, RejectsUnsupportedVersion) {
-  for (uint64_t v : {0ull, 2ull, 0x100000001ull, 0xFFFFFFFFFFFFFFFFull}) {
+  // 1: file CRCs over whole containers, which every intact file shares.
+  for (uint64_t v : {0ull, 1ull, 3ull, 0x100000001ull, 0xFFFFFFFFFFFFFFFFull}) {
     json j = sampleJson();
     j["version"] = v;
     SCOPED_TRACE(v);
@@ -1244,7 +1245,8 @@ class SceneTest : public ::testing::Test {
 
   void put(const std::string& name, const Bytes& bytes) {
     writeFileAtomic(dir_ + "/" + name, bytes);
-    manifest_.files[name] = {bytes.size(), referenceCrc(bytes.data(), bytes.size())};
+    // The manifest lists the CRC of all but the stored CRC (manifestCrc).
+    manifest_.files[name] = {bytes.size(), referenceCrc(bytes.data(), bytes.size() - 4)};
   }
   // Writes every file with correct sizes and CRCs in the manifest.
   void write() {
