@@ -24,6 +24,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "plugin_guard.h"
 
 namespace fs = std::filesystem;
 
@@ -531,7 +532,10 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
     throw Error(fileError(out.string(), "output already exists; remove it or choose another"));
   auto t0 = Clock::now();  // reading the models counts toward throughput
   std::vector<osg::ref_ptr<osg::Node>> models;
-  for (const auto& in : opts.inputs) models.push_back(readModel(in));
+  {
+    PluginGuard guard;  // models from strangers load only allowed formats
+    for (const auto& in : opts.inputs) models.push_back(readModel(in));
+  }
 
   fs::path tmp = out;
   tmp += ".partial-" + std::to_string(::getpid());

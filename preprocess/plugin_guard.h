@@ -1,0 +1,42 @@
+// Which OpenSceneGraph plugins a model from a stranger may make the
+// preprocessor load. A model file can name other files (textures, external
+// nodes, shaders, scripts, archives) and OSG picks a plugin by each name's
+// extension, or by a URL's scheme: left alone, an .osgt could make
+// dmmr-preprocess fetch from the network (osgdb_curl), run a script
+// (osgdb_lua), or load any installed plugin through a pseudo-loader name
+// such as "model.osg.0,0,1.trans". While a PluginGuard lives, every read
+// through osgDB's registry is checked against an allow-list of model and
+// image formats; anything else is refused with a warning on stderr and the
+// model loads without it.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+#include <osg/ref_ptr>
+#include <osgDB/Callbacks>
+
+namespace dmmr {
+
+enum class ReadKind { Node, Image, Object, Other };
+
+// True when `filename` may be read as `kind`; otherwise *why says why.
+// Pure: looks at the name only.
+bool allowedReference(const std::string& filename, ReadKind kind, std::string* why);
+
+class PluginGuard {
+ public:
+  PluginGuard();   // installs the registry's read callback
+  ~PluginGuard();  // restores the one before
+  PluginGuard(const PluginGuard&) = delete;
+  PluginGuard& operator=(const PluginGuard&) = delete;
+  uint64_t refused() const;  // reads refused so far
+
+ private:
+  class Callback;
+  osg::ref_ptr<Callback> callback_;
+  osg::ref_ptr<osgDB::ReadFileCallback> previous_;
+};
+
+}  // namespace dmmr
