@@ -79,6 +79,13 @@ std::vector<uint8_t> readGeometryFile(const Scene& scene, uint32_t index) {
 GeometryData decodeGeometryFile(const Scene& scene, uint32_t index,
                                 const std::vector<uint8_t>& bytes) {
   std::string path = scene.dir + "/" + geometryFileName(index);
+  // The encoding byte opens the payload, after the 20-byte container header.
+  constexpr size_t kEncodingAt = 20;
+  if (bytes.size() > kEncodingAt && bytes[kEncodingAt] != uint8_t(scene.manifest.encoding) &&
+      bytes[kEncodingAt] <= uint8_t(Encoding::QuantizedMeshopt))
+    throw Error(fileError(
+        path, std::string("encoding ") + encodingName(Encoding(bytes[kEncodingAt])) +
+                  " differs from the manifest's " + encodingName(scene.manifest.encoding)));
   GeometryData g = decodeGeometry(bytes, path);
   for (const SubMesh& sm : g.submeshes)
     if (sm.texture >= 0 && uint64_t(sm.texture) >= scene.manifest.textures)

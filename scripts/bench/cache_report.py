@@ -38,7 +38,8 @@ def main():
         d = int(budget[3:]) if budget else None
         ram = mib(geometry // d) if d else "unlimited"
         gpu = mib(geometry // d // 2) if d else "unlimited"
-        name = label + {"noprefetch": " (no prefetch)", "lru": " (plain LRU)"}.get(label.split("-")[-1], "")
+        name = label + {"noprefetch": " (no prefetch)", "lru": " (plain LRU)",
+                        "meshopt": " (meshopt-encoded scene)"}.get(label.split("-")[-1], "")
         print(f"| {name} | {ram} | {gpu} | {gh / max(1, gh + gm):.3f} | {rh / max(1, rh + rm):.3f} "
               f"| {mib(total('disk_bytes'))} | {mib(peak('ram_resident'))} | {mib(peak('gpu_resident'))} "
               f"| {total('uncached')} | {frame_ms:.1f} | {worst} |")

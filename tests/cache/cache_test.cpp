@@ -278,6 +278,27 @@ TEST(HostCache, AGeometryFileSwappedForAnotherIntactOneIsCaught) {
   EXPECT_NE(err.find("checksum differs from the manifest"), std::string::npos) << err;
 }
 
+TEST(HostCache, AGeometryFileInAnotherEncodingThanTheManifestsIsCaught) {
+  PlantFixture& p = plant();
+  TempDir d;
+  fs::copy(p.scene.dir, d / "scene", fs::copy_options::recursive);
+  std::string manifest = d / "scene/manifest.json";
+  std::ifstream in(manifest);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string from = "\"encoding\": \"float32\"";
+  size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << text.substr(0, 400);
+  text.replace(at, from.size(), "\"encoding\": \"meshopt\"");
+  std::ofstream(manifest) << text;
+  Scene scene = loadScene(d / "scene");
+  HostCache cache(scene, {});
+  testing::internal::CaptureStderr();
+  EXPECT_FALSE(cache.get(0));
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("encoding float32 differs from the manifest's meshopt"), std::string::npos)
+      << err;
+}
+
 // Two stages' worth of threads reading through one small cache while the
 // loader prefetches: every geometry decodes as on disk, the budget holds.
 TEST(HostCache, ConcurrentGetsAndPrefetchesAgree) {
