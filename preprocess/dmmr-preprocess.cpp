@@ -45,6 +45,11 @@ int main(int argc, char** argv) {
                    "coordinates and the %llu triangles using them\n",
                    (unsigned long long)s.nonfinite_vertices,
                    (unsigned long long)s.dropped_triangles);
+    if (s.degenerate_triangles)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: dropped %llu degenerate triangles (corners that "
+                   "coincide: they cover no pixel)\n",
+                   (unsigned long long)s.degenerate_triangles);
     if (s.skipped_drawables)
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: skipped %llu drawables without triangle "

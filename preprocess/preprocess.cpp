@@ -362,6 +362,16 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
       ++stats_.dropped_triangles;
       continue;
     }
+    // Corners that coincide (one vertex twice, or two at one position) make
+    // a triangle that covers no pixel: dropping it changes no image.
+    // Collinear corners are kept: in float, after the transform, they may
+    // cover a sliver.
+    Vec3d p[3];
+    for (int k = 0; k < 3; ++k) readVec3(verts, v[k], &p[k]);
+    if (p[0] == p[1] || p[1] == p[2] || p[0] == p[2]) {
+      ++stats_.degenerate_triangles;
+      continue;
+    }
     for (uint32_t src : v) {
       if (remap[src] == kNone) {
         remap[src] = uint32_t(positions->size() / 3);

@@ -41,6 +41,7 @@ struct PreprocessStats {
   uint64_t triangles = 0, unique_triangles = 0;
   uint64_t nonfinite_vertices = 0;                 // vertices with NaN/inf coordinates (dropped)
   uint64_t dropped_triangles = 0;                  // triangles that used such vertices
+  uint64_t degenerate_triangles = 0;               // with coinciding corners (no pixels): dropped
   uint64_t skipped_drawables = 0;                  // drawables that are not triangle geometry
   uint64_t lod_geometries = 0, lod_triangles = 0;  // levels of detail stored
   uint64_t bytes_written = 0;

@@ -210,6 +210,32 @@ TEST(Preprocess, NonFiniteVerticesAreDroppedWithTheirTrianglesAndCounted) {
   for (float f : geo.positions) EXPECT_TRUE(std::isfinite(f));
 }
 
+TEST(Preprocess, TrianglesWithCoincidingCornersAreDroppedAndCounted) {
+  TempDir dir;
+  auto* v = new osg::Vec3Array;
+  for (osg::Vec3 p : {osg::Vec3(0, 0, 0), osg::Vec3(1, 0, 0), osg::Vec3(0, 1, 0),
+                      osg::Vec3(1, 0, 0) /* duplicate of 1 */, osg::Vec3(2, 0, 0)})
+    v->push_back(p);
+  auto* idx = new osg::DrawElementsUInt(GL_TRIANGLES);
+  for (GLuint i : {0, 1, 2,   // kept
+                   0, 0, 1,   // one vertex twice: dropped
+                   1, 3, 2,   // two vertices at one position: dropped
+                   0, 1, 4,   // collinear, zero area: kept (see preprocess.cpp)
+                   3, 2, 0})  // a duplicate vertex in a proper triangle: kept
+    idx->push_back(i);
+  auto* geom = new osg::Geometry;
+  geom->setVertexArray(v);
+  geom->addPrimitiveSet(idx);
+  osg::ref_ptr<osg::Geode> g = new osg::Geode;
+  g->addDrawable(geom);
+  PreprocessStats st = run({writeModel(dir, g.get(), "degenerate.osgb")}, dir / "scene");
+  EXPECT_EQ(st.degenerate_triangles, 2u);
+  EXPECT_EQ(st.triangles, 3u);
+  GeometryData geo = loadGeometry(loadScene(dir / "scene"), 0);
+  EXPECT_EQ(geo.triangleCount(), 3u);
+  EXPECT_EQ(geo.vertexCount(), 5u) << "duplicate vertices are kept (they may differ in normals)";
+}
+
 TEST(Preprocess, FarFromOriginKeepsPrecisionByRecentring) {
   TempDir dir;
   // Vertices 1e6 from the origin in double, 1 mm apart: float positions at
