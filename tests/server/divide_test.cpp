@@ -328,9 +328,10 @@ TEST(DivideFrame, ZeroWeightObjectsStillSteerTheSplit) {
 
 // ---- degenerate input -------------------------------------------------------
 
-TEST(DivideFrame, AHundredThousandObjectsOnOnePixelAllGoToTheClientOwningIt) {
+TEST(DivideFrame, AMillionObjectsOnOnePixelAllGoToTheClientOwningIt) {
+  constexpr uint32_t kObjects = 1'000'000;
   std::vector<Footprint> items;
-  for (uint32_t i = 0; i < 100000; ++i) items.push_back(fp(i, 300, 301, 400, 401, 3));
+  for (uint32_t i = 0; i < kObjects; ++i) items.push_back(fp(i, 300, 301, 400, 401, 3));
   Rect frame{0, 0, 1024, 1024};
   for (int clients : {2, 7, 8, 17}) {
     std::vector<Region> regions = divideFrame(items, frame, clients);
@@ -339,9 +340,9 @@ TEST(DivideFrame, AHundredThousandObjectsOnOnePixelAllGoToTheClientOwningIt) {
     int owner = test::regionAt(regions, 300, 400);
     ASSERT_GE(owner, 0);
     for (size_t r = 0; r < regions.size(); ++r)
-      EXPECT_EQ(regions[r].objects.size(), int(r) == owner ? 100000u : 0u)
+      EXPECT_EQ(regions[r].objects.size(), int(r) == owner ? kObjects : 0u)
           << "region " << r << " of " << clients;
-    EXPECT_EQ(regions[size_t(owner)].weight, 300000u);
+    EXPECT_EQ(regions[size_t(owner)].weight, 3u * kObjects);
   }
 }
 
