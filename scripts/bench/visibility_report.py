@@ -50,7 +50,7 @@ for s in scenes:
               f"{med(rs, 'c1_retrieve_ms'):.1f} | {med(rs, 'c1_pass_ms'):.1f} | {med(rs, 'c1_render_ms'):.1f} | "
               f"{med(rs, 'c1_queried'):.0f} | {med(rs, 'c1_visible'):.0f} | {errors(s + '-' + k)[2]} |")
     print(f"\n#### {s}: speed against error (visibility settings)\n")
-    print("| query threshold (samples; front and back faces count) | keep frames | frame ms | triangles drawn | mean PSNR dB | worst PSNR dB | worst differing pixels |")
+    print("| query threshold (samples: pixels of the box's front faces) | keep frames | frame ms | triangles drawn | mean PSNR dB | worst PSNR dB | worst differing pixels |")
     print("|---|---|---|---|---|---|---|")
     for t in (0, 16, 64):
         for k in (0, 3, 10):
