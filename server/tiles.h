@@ -1,0 +1,70 @@
+// Tile-based distribution (Sensors 2022 mobile ray-tracing paper, section 4):
+// the frame as a pool of fixed-size tiles, dealt to the clients up front
+// (static) or handed out on demand (dynamic); and the link model that the
+// network benchmark falls back to where real shaping is impossible. Plain
+// data, no MPI or GL: the building blocks of --balance tiles-static and
+// tiles-dynamic.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "math.h"
+
+namespace dmmr {
+
+// Tiles of tile_w x tile_h pixels covering `frame` in row order (GL order:
+// the bottom row of tiles first, each left to right); the last column and
+// row are cut to fit. tile_w, tile_h >= 1; an empty frame has no tiles.
+std::vector<Rect> makeTiles(const Rect& frame, int tile_w, int tile_h);
+
+enum class TileOrder : uint8_t {
+  Rows,         // the paper's round-robin: tile i to client i mod n
+  Interleaved,  // tile (row r, column c) to client (r + c) mod n: diagonals,
+                // so a heavy area spanning a few rows and columns is split
+                // among clients even when the column count is a multiple of n
+};
+
+// Static dealing: for each client, the indices (into makeTiles' list) of its
+// tiles, ascending. Every tile goes to exactly one client; counts differ by
+// at most one for Rows. `columns` is the tile grid's width (>= 1).
+std::vector<std::vector<uint32_t>> dealTiles(size_t tiles, int columns, int clients,
+                                             TileOrder order);
+
+// Dynamic dealing: a pool handed out on demand, with at most `window` tiles
+// in flight per client (more hides the link's latency; 1 is the paper's
+// request-per-tile).
+class TilePool {
+ public:
+  TilePool(size_t tiles, int clients, int window);
+  // Tiles to send `client` now: enough to fill its window from the pool,
+  // lowest index first. Empty when the pool is dry or the window is full.
+  std::vector<uint32_t> refill(int client);
+  // `client` returned `tile` (which it must have been given and not yet
+  // returned).
+  void done(int client, uint32_t tile);
+  bool finished() const { return returned_ == owner_.size(); }
+  int inFlight(int client) const { return in_flight_[size_t(client)]; }
+  // Which client was given each tile (-1: not yet handed out).
+  const std::vector<int>& owner() const { return owner_; }
+
+ private:
+  std::vector<int> owner_;
+  std::vector<uint8_t> back_;
+  std::vector<int> in_flight_;
+  int window_;
+  size_t next_ = 0, returned_ = 0;
+};
+
+// A network link as a model: latency, bandwidth and jitter.
+struct LinkModel {
+  double latency_s = 0;     // one way
+  double bits_per_s = 1e9;  // usable bandwidth
+  double jitter_s = 0;      // extra delay, uniform in [0, jitter_s]
+};
+
+// Seconds for a message of `bytes` on `link`: latency + size / bandwidth +
+// jitter * u, with u in [0, 1) drawn by the caller (so runs are repeatable).
+double linkSeconds(uint64_t bytes, const LinkModel& link, double u);
+
+}  // namespace dmmr

@@ -1,0 +1,132 @@
+// Tile pools for --balance tiles-static / tiles-dynamic, and the link model,
+// on plain data.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "tiles.h"
+
+using namespace dmmr;
+using Ids = std::vector<uint32_t>;
+
+namespace {
+// Every pixel of `frame` in exactly one tile, and no tile outside it.
+bool coversExactly(const std::vector<Rect>& tiles, const Rect& frame) {
+  std::vector<int> hits(size_t(frame.area()), 0);
+  for (const Rect& t : tiles)
+    for (int y = t.y; y < t.y + t.h; ++y)
+      for (int x = t.x; x < t.x + t.w; ++x) {
+        if (x < frame.x || y < frame.y || x >= frame.x + frame.w || y >= frame.y + frame.h)
+          return false;
+        ++hits[size_t((y - frame.y) * frame.w + (x - frame.x))];
+      }
+  return std::all_of(hits.begin(), hits.end(), [](int h) { return h == 1; });
+}
+}  // namespace
+
+TEST(MakeTiles, RowOrderWithTheLastRowAndColumnCut) {
+  std::vector<Rect> t = makeTiles({0, 0, 300, 200}, 128, 128);
+  ASSERT_EQ(t.size(), 6u);
+  EXPECT_EQ(t[0], (Rect{0, 0, 128, 128}));
+  EXPECT_EQ(t[2], (Rect{256, 0, 44, 128}));
+  EXPECT_EQ(t[3], (Rect{0, 128, 128, 72}));
+  EXPECT_EQ(t[5], (Rect{256, 128, 44, 72}));
+}
+
+TEST(MakeTiles, CoverEveryFrameShapeExactly) {
+  for (Rect frame :
+       {Rect{0, 0, 1, 1}, Rect{0, 0, 7, 5}, Rect{10, 20, 64, 64}, Rect{0, 0, 513, 257}})
+    for (auto [w, h] : {std::pair{1, 1}, {32, 32}, {128, 64}, {1000, 1000}}) {
+      std::vector<Rect> t = makeTiles(frame, w, h);
+      EXPECT_TRUE(coversExactly(t, frame)) << frame << " tile " << w << "x" << h;
+      for (const Rect& r : t) EXPECT_TRUE(r.w >= 1 && r.h >= 1 && r.w <= w && r.h <= h);
+    }
+  EXPECT_TRUE(makeTiles({0, 0, 0, 0}, 32, 32).empty());
+}
+
+TEST(DealTiles, RowsIsThePapersRoundRobin) {
+  auto d = dealTiles(7, 3, 3, TileOrder::Rows);
+  EXPECT_EQ(d[0], (Ids{0, 3, 6}));
+  EXPECT_EQ(d[1], (Ids{1, 4}));
+  EXPECT_EQ(d[2], (Ids{2, 5}));
+}
+
+TEST(DealTiles, InterleavedSplitsAColumnAmongClients) {
+  // 4 columns, 2 clients: in rows order client 0 owns columns 0 and 2
+  // whole; interleaved, each column alternates.
+  auto rows = dealTiles(16, 4, 2, TileOrder::Rows);
+  auto inter = dealTiles(16, 4, 2, TileOrder::Interleaved);
+  EXPECT_EQ(rows[0], (Ids{0, 2, 4, 6, 8, 10, 12, 14}));
+  EXPECT_EQ(inter[0], (Ids{0, 2, 5, 7, 8, 10, 13, 15}));
+}
+
+TEST(DealTiles, EveryTileToExactlyOneClient) {
+  for (TileOrder order : {TileOrder::Rows, TileOrder::Interleaved})
+    for (int clients : {1, 2, 3, 8, 17})
+      for (size_t tiles : {0u, 1u, 5u, 64u, 101u}) {
+        auto d = dealTiles(tiles, 8, clients, order);
+        ASSERT_EQ(d.size(), size_t(clients));
+        Ids all;
+        size_t lo = tiles, hi = 0;
+        for (auto& c : d) {
+          EXPECT_TRUE(std::is_sorted(c.begin(), c.end()));
+          all.insert(all.end(), c.begin(), c.end());
+          lo = std::min(lo, c.size());
+          hi = std::max(hi, c.size());
+        }
+        std::sort(all.begin(), all.end());
+        Ids expect(tiles);
+        for (size_t i = 0; i < tiles; ++i) expect[i] = uint32_t(i);
+        EXPECT_EQ(all, expect);
+        if (order == TileOrder::Rows) EXPECT_LE(hi - std::min(lo, hi), 1u);
+      }
+}
+
+TEST(TilePool, FillsEachWindowThenRefillsAsTilesReturn) {
+  TilePool pool(5, 2, 2);
+  EXPECT_EQ(pool.refill(0), (Ids{0, 1}));
+  EXPECT_EQ(pool.refill(1), (Ids{2, 3}));
+  EXPECT_TRUE(pool.refill(0).empty()) << "window full";
+  pool.done(1, 3);
+  EXPECT_EQ(pool.refill(1), Ids{4});
+  EXPECT_TRUE(pool.refill(0).empty()) << "pool dry";
+  for (auto [c, t] : {std::pair{0, 0u}, {0, 1u}, {1, 2u}}) pool.done(c, t);
+  EXPECT_FALSE(pool.finished());
+  pool.done(1, 4);
+  EXPECT_TRUE(pool.finished());
+  EXPECT_EQ(pool.owner(), (std::vector<int>{0, 0, 1, 1, 1}));
+}
+
+// Clients finishing in random order: every tile is handed out once, no
+// window is ever exceeded, and the pool finishes.
+TEST(TilePool, RandomCompletionOrderKeepsItsInvariants) {
+  std::mt19937 rng(42);
+  for (int trial = 0; trial < 50; ++trial) {
+    int clients = 1 + int(rng() % 8), window = 1 + int(rng() % 4);
+    size_t tiles = rng() % 200;
+    TilePool pool(tiles, clients, window);
+    std::vector<std::pair<int, uint32_t>> out;
+    std::vector<int> given(tiles, 0);
+    for (int c = 0; c < clients; ++c)
+      for (uint32_t t : pool.refill(c)) out.push_back({c, t}), ++given[t];
+    while (!out.empty()) {
+      size_t i = rng() % out.size();
+      auto [c, t] = out[i];
+      out.erase(out.begin() + long(i));
+      pool.done(c, t);
+      for (uint32_t n : pool.refill(c)) out.push_back({c, n}), ++given[n];
+      for (int k = 0; k < clients; ++k) ASSERT_LE(pool.inFlight(k), window);
+    }
+    EXPECT_TRUE(pool.finished());
+    EXPECT_TRUE(std::all_of(given.begin(), given.end(), [](int g) { return g == 1; }));
+  }
+}
+
+TEST(LinkModel, LatencyPlusSizeOverBandwidthPlusJitter) {
+  LinkModel lan{0.0001, 1e9, 0};
+  EXPECT_DOUBLE_EQ(linkSeconds(125'000'000, lan, 0.5), 1.0001);
+  LinkModel wifi{0.005, 100e6, 0.002};
+  EXPECT_DOUBLE_EQ(linkSeconds(0, wifi, 0), 0.005);
+  EXPECT_DOUBLE_EQ(linkSeconds(1'250'000, wifi, 0.5), 0.005 + 0.1 + 0.001);
+}
