@@ -12,6 +12,7 @@ packages=(
   googletest libgtest-dev
   clang libclang-rt-14-dev
   python3 time
+  python3-matplotlib
 )
 
 missing=()

@@ -1,0 +1,197 @@
+"""Per-run statistics from the per-frame CSVs: means per stage, the derived
+cluster frame time, cache hit rates, accuracy against the reference."""
+import csv
+import json
+import math
+import statistics as st
+from pathlib import Path
+
+# Client columns of dmmr-render's stats CSV, in pipeline order.
+VIS_STAGES = ["prepare_ms", "retrieve_ms", "pass_ms"]           # visibility context
+RENDER_STAGES = ["load_ms", "render_ms", "readback_ms", "compress_ms", "send_ms"]  # render context
+CLIENT_STAGES = VIS_STAGES + RENDER_STAGES
+CLIENT_COUNTS = ["objects", "occluders", "queried", "visible", "triangles", "bytes_raw", "bytes_sent",
+                 "gpu_hits", "gpu_misses", "ram_hits", "ram_misses", "disk_bytes"]
+SERVER_STAGES = ["cull_ms", "divide_ms", "send_ms", "assemble_ms", "write_ms"]
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def steady(rows):
+    """Frames 1.. (frame 0 loads every geometry it sees); all frames if only one."""
+    return rows[1:] if len(rows) > 1 else rows
+
+
+def num(r, k, default=0.0):
+    v = r.get(k)
+    if v is None or v == "":
+        return default
+    return float(v)
+
+
+def mean(xs):
+    xs = list(xs)
+    return st.fmean(xs) if xs else float("nan")
+
+
+def median(xs):
+    xs = list(xs)
+    return st.median(xs) if xs else float("nan")
+
+
+def clients_of(row):
+    n = 0
+    while f"c{n + 1}_triangles" in row:
+        n += 1
+    return n
+
+
+# The client's own work: the stages that compute, not those that hand over and
+# may block (pass_ms waits for room in the render stage's queue, send_ms for
+# MPI), which on a shared machine mostly measure waiting for another process.
+WORK_VIS = ["prepare_ms", "retrieve_ms"]
+WORK_RENDER = ["load_ms", "render_ms", "readback_ms", "compress_ms"]
+LINK_GBPS = 1.0  # nominal network for the derived transfer time (set by the suite's run.link_gbps)
+
+
+def transfer_ms(nbytes):
+    return nbytes * 8 / (LINK_GBPS * 1e9) * 1e3
+
+
+def client_work(r, k):
+    return sum(num(r, f"c{k}_{s}") for s in WORK_VIS + WORK_RENDER)
+
+
+def derived_frame(r, n):
+    """The frame time a cluster with one machine per client would see, from this
+    frame's measured stage times: server cull and division, then the slowest
+    client's own work done serially (prepare, retrieve, load, render, read back,
+    compress) plus its sub-frame's transfer at LINK_GBPS; no overlap between
+    frames assumed. Waiting (pass_ms, send_ms) is left out."""
+    server = num(r, "cull_ms") + num(r, "divide_ms")
+    slowest = max(client_work(r, k) + transfer_ms(num(r, f"c{k}_bytes_sent")) for k in range(1, n + 1))
+    return server + slowest
+
+
+def derived_pipelined(r, n):
+    """Same, with the stages overlapped as the pipeline does on a real cluster
+    (two contexts per client): the slowest of server, visibility and render stage."""
+    server = num(r, "cull_ms") + num(r, "divide_ms")
+    vis = max(sum(num(r, f"c{k}_{s}") for s in WORK_VIS) for k in range(1, n + 1))
+    ren = max(sum(num(r, f"c{k}_{s}") for s in WORK_RENDER) + transfer_ms(num(r, f"c{k}_bytes_sent"))
+              for k in range(1, n + 1))
+    return max(server, vis, ren)
+
+
+def accuracy(cmp_path):
+    rows = read_csv(cmp_path)
+    ps = [float(r["psnr"]) for r in rows]
+    finite = [p for p in ps if not math.isinf(p)]
+    return {
+        "frames": len(rows),
+        "max_differing_pixels": max((int(r["differing_pixels"]) for r in rows), default=0),
+        "total_differing_pixels": sum(int(r["differing_pixels"]) for r in rows),
+        "min_psnr_db": min(finite) if finite else "inf",
+        "mean_psnr_db": mean(finite) if finite else "inf",
+        "identical_frames": sum(1 for r in rows if int(r["differing_pixels"]) == 0),
+    }
+
+
+def rate(h, m):
+    return h / (h + m) if h + m > 0 else None
+
+
+def reference_stats(path):
+    rows = read_csv(path)
+    s = steady(rows)
+    ft = [num(r, "frame_ms") for r in s]
+    return {
+        "frames": len(rows),
+        "frame_ms_mean": mean(ft), "frame_ms_median": median(ft),
+        "frame_ms_series": [num(r, "frame_ms") for r in rows],
+        "fps": 1000.0 / mean(ft) if mean(ft) > 0 else None,
+        "triangles_mean": mean(num(r, "triangles") for r in s),
+    }
+
+
+def render_stats(path, clients):
+    rows = read_csv(path)
+    n = clients_of(rows[0])
+    if n != clients:
+        raise RuntimeError(f"{path}: {n} clients in the CSV, {clients} expected")
+    s = steady(rows)
+    ft = [num(r, "frame_ms") for r in s]
+    der = [derived_frame(r, n) for r in s]
+    derp = [derived_pipelined(r, n) for r in s]
+    out = {
+        "frames": len(rows), "clients": n,
+        "frame_ms_mean": mean(ft), "frame_ms_median": median(ft),
+        "fps": 1000.0 / mean(ft) if mean(ft) > 0 else None,
+        "fps_min": 1000.0 / max(ft) if ft and max(ft) > 0 else None,
+        "fps_max": 1000.0 / min(ft) if ft and min(ft) > 0 else None,
+        "derived_frame_ms_mean": mean(der), "derived_frame_ms_median": median(der),
+        "derived_pipelined_ms_mean": mean(derp),
+        "server": {k: mean(num(r, k) for r in s) for k in SERVER_STAGES},
+        "objects_in_frustum_mean": mean(num(r, "objects_in_frustum") for r in s),
+        "triangles_in_frustum_mean": mean(num(r, "triangles_in_frustum") for r in s),
+        "series": {
+            "frame_ms": [num(r, "frame_ms") for r in rows],
+            "derived_frame_ms": [derived_frame(r, n) for r in rows],
+            "divide_ms": [num(r, "divide_ms") for r in rows],
+            "prepare_ms": [[num(r, f"c{k}_prepare_ms") for r in rows] for k in range(1, n + 1)],
+        },
+        "per_client": [],
+    }
+    gh = gm = rh = rm = 0.0
+    for k in range(1, n + 1):
+        c = {st_: mean(num(r, f"c{k}_{st_}") for r in s) for st_ in CLIENT_STAGES}
+        c.update({f"{cnt}_mean": mean(num(r, f"c{k}_{cnt}") for r in s) for cnt in CLIENT_COUNTS})
+        c["work_ms"] = sum(c[x] for x in WORK_VIS + WORK_RENDER)
+        c["transfer_ms"] = transfer_ms(c["bytes_sent_mean"])
+        hits = {x: sum(num(r, f"c{k}_{x}") for r in s) for x in ("gpu_hits", "gpu_misses", "ram_hits", "ram_misses")}
+        c["gpu_hit_rate"] = rate(hits["gpu_hits"], hits["gpu_misses"])
+        c["ram_hit_rate"] = rate(hits["ram_hits"], hits["ram_misses"])
+        gh += hits["gpu_hits"]; gm += hits["gpu_misses"]; rh += hits["ram_hits"]; rm += hits["ram_misses"]
+        out["per_client"].append(c)
+    out["triangles_drawn_mean"] = sum(c["triangles_mean"] for c in out["per_client"])
+    out["bytes_sent_mean"] = sum(c["bytes_sent_mean"] for c in out["per_client"])
+    out["gpu_hit_rate"] = rate(gh, gm)
+    out["ram_hit_rate"] = rate(rh, rm)
+    return out
+
+
+def scene_counts(scene_dir):
+    try:
+        m = json.loads((Path(scene_dir) / "manifest.json").read_text())
+        return m.get("counts", {})
+    except (OSError, ValueError):
+        return {}
+
+
+def analyse_scene(name, info, configurations):
+    rd = Path(info["runs_dir"])
+    ref = reference_stats(rd / "reference.csv")
+    res = {"scene": name, "counts": scene_counts(info["scene_dir"]), "walkthrough": info["walkthrough"],
+           "reference": ref, "runs": {}}
+    for label, n, extra in configurations:
+        r = render_stats(rd / f"{label}.csv", n)
+        r["options"] = extra
+        r["query_threshold"] = int(extra[extra.index("--query-threshold") + 1]) if "--query-threshold" in extra else 0
+        r["conservative"] = r["query_threshold"] == 0
+        r["accuracy"] = accuracy(rd / f"{label}.cmp.csv")
+        r["accuracy_ok"] = (r["accuracy"]["max_differing_pixels"] == 0) if r["conservative"] else True
+        rf = ref["frame_ms_mean"]
+        # > 1: dmmr is faster than the reference by that factor; < 1: it loses
+        r["speedup_vs_reference"] = rf / r["frame_ms_mean"] if r["frame_ms_mean"] > 0 else None
+        r["derived_speedup_vs_reference"] = rf / r["derived_frame_ms_mean"] if r["derived_frame_ms_mean"] > 0 else None
+        res["runs"][label] = r
+    # efficiency tau_1 / (S * tau_S) over the plain runs, from derived times
+    base = next((r for r in res["runs"].values() if r["clients"] == 1 and not r["options"]), None)
+    for r in res["runs"].values():
+        if base and not r["options"] and r["derived_frame_ms_mean"] > 0:
+            r["derived_efficiency"] = base["derived_frame_ms_mean"] / (r["clients"] * r["derived_frame_ms_mean"])
+            r["derived_speedup_vs_1_client"] = base["derived_frame_ms_mean"] / r["derived_frame_ms_mean"]
+    return res

@@ -1,0 +1,111 @@
+"""dmmr-bench SUITE [--scale small|medium|large] [--out DIR] [--bin DIR]"""
+import argparse
+import os
+import platform
+import shlex
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+from . import analysis, report
+from .runner import Progress, Runner
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def find_suite(name):
+    p = Path(name)
+    if p.suffix == ".toml" and p.exists():
+        return p
+    p = ROOT / "configs" / "bench" / f"{name}.toml"
+    if not p.exists():
+        known = sorted(x.stem for x in (ROOT / "configs" / "bench").glob("*.toml"))
+        sys.exit(f"dmmr-bench: no suite {name!r} (known: {', '.join(known)})")
+    return p
+
+
+def machine():
+    cpus = os.cpu_count()
+    model = ""
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = ""
+    try:
+        kb = int(next(l for l in open("/proc/meminfo") if l.startswith("MemTotal")).split()[1])
+        mem = f", {kb / 1024 / 1024:.0f} GiB"
+    except (OSError, StopIteration, ValueError):
+        pass
+    return f"{cpus} CPUs ({model}){mem}, {platform.system()} {platform.release()}, no GPU used (llvmpipe)"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="dmmr-bench", description="Walkthrough benchmarks: the paper's tables and "
+                                 "figures for dmmr against dmmr-reference, with 1, 2 and 4 clients.")
+    ap.add_argument("suite", help="suite name in configs/bench/ (e.g. paper) or a .toml file")
+    ap.add_argument("--scale", default="small", help="small (CI, < 2 min), medium, large (default small)")
+    ap.add_argument("--out", help="output directory (default out/bench/SUITE-SCALE); scenes there are reused")
+    ap.add_argument("--bin", default=os.environ.get("DMMR_BIN"),
+                    help="directory of the dmmr tools (default $DMMR_BIN, else build/bin)")
+    ap.add_argument("--backend", default="osmesa", choices=["osmesa", "egl"])
+    ap.add_argument("--resume", action="store_true", help="reuse runs whose CSVs exist (default: rerun)")
+    ap.add_argument("--report-only", action="store_true", help="rebuild the report from existing runs")
+    a = ap.parse_args(argv)
+
+    suite_path = find_suite(a.suite)
+    suite = tomllib.loads(suite_path.read_text())
+    if a.scale not in suite.get("scales", {}):
+        sys.exit(f"dmmr-bench: suite {a.suite} has no scale {a.scale!r} (has {', '.join(suite.get('scales', {}))})")
+    out = Path(a.out or ROOT / "out" / "bench" / f"{suite_path.stem}-{a.scale}").resolve()
+    bin_dir = Path(a.bin or ROOT / "build" / "bin").resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    runner = Runner(suite, a.scale, out, bin_dir, backend=a.backend, resume=a.resume or a.report_only)
+    cfg = runner.cfg
+    scenes = runner.scenes()
+    confs = runner.configurations()
+    print(f"dmmr-bench: suite {suite_path.stem}, scale {a.scale}: {len(scenes)} scenes x "
+          f"(reference + {len(confs)} dmmr-render runs), {cfg.get('width')}x{cfg.get('height')}, "
+          f"tools {bin_dir}, output {out} (log: {out / 'bench.log'})", flush=True)
+    analysis.LINK_GBPS = float(runner.run_cfg.get("link_gbps", 1.0))
+    t0 = time.monotonic()
+    progress = Progress(runner.total_steps())
+    results = []
+    try:
+        for sc in scenes:
+            info = runner.run_scene(sc, progress)
+            res = analysis.analyse_scene(sc["name"], info, confs)
+            res.update(info)
+            res["sweep_clients"] = runner.run_cfg.get("sweep_clients", 1)
+            results.append(res)
+    except RuntimeError as e:
+        print(f"dmmr-bench: {e}", file=sys.stderr)
+        return 1
+    wall = time.monotonic() - t0
+    meta = {
+        "suite": suite_path.stem, "scale": a.scale,
+        "command": "scripts/dmmr-bench " + " ".join(shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])),
+        "machine": machine(), "width": cfg.get("width"), "height": cfg.get("height"), "backend": a.backend,
+        "lp_num_threads": runner.run_cfg.get("lp_num_threads"), "wall_s": wall,
+        "configurations": [{"label": l, "clients": n, "options": x} for l, n, x in confs],
+        "run_wall_s": runner.timings,
+        "link_gbps": analysis.LINK_GBPS,
+        "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (prepare+retrieve+load+render+"
+                              "readback+compress ms + bytes_sent at link_gbps); mean over frames 1..",
+    }
+    try:
+        meta["git"] = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                                     capture_output=True, text=True).stdout.strip()
+    except OSError:
+        pass
+    frames = max(len(s["reference"]["frame_ms_series"]) for s in results)
+    window = max(1, min(10, frames // 8))
+    ok = report.write(out / "report", meta, results, window)
+    print(f"dmmr-bench: done in {wall:.0f} s; report {out / 'report' / 'report.md'}"
+          f"{'' if ok else ' -- ACCURACY FAILED (a conservative run differs from the reference)'}", flush=True)
+    return 0 if ok else 2

@@ -1,0 +1,155 @@
+"""Generates (or reuses) the suite's scenes and runs every configuration."""
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+class Progress:
+    def __init__(self, total):
+        self.total, self.done, self.start = total, 0, time.monotonic()
+
+    def step(self, what):
+        self.done += 1
+        elapsed = time.monotonic() - self.start
+        print(f"[{self.done:>3}/{self.total}] {elapsed:7.1f} s  {what}", flush=True)
+
+
+def run_cmd(cmd, log, env=None):
+    """Runs cmd, appending its output to log; raises with the log's tail on failure."""
+    t0 = time.monotonic()
+    with open(log, "a") as f:
+        f.write("$ " + " ".join(str(c) for c in cmd) + "\n")
+        f.flush()
+        p = subprocess.run([str(c) for c in cmd], stdout=f, stderr=subprocess.STDOUT, env=env)
+    dt = time.monotonic() - t0
+    if p.returncode != 0:
+        tail = Path(log).read_text().splitlines()[-15:]
+        raise RuntimeError(f"command failed ({p.returncode}): {' '.join(str(c) for c in cmd)}\n" + "\n".join(tail))
+    return dt
+
+
+class Runner:
+    def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False):
+        self.suite, self.scale, self.out, self.bin = suite, scale, Path(out), Path(bin_dir)
+        self.backend, self.resume = backend, resume
+        self.cfg = suite["scales"][scale]
+        self.run_cfg = suite.get("run", {})
+        self.log = self.out / "bench.log"
+        for tool in ("dmmr-scenegen", "dmmr-preprocess", "dmmr-reference", "dmmr-render", "dmmr-compare"):
+            if not (self.bin / tool).exists():
+                sys.exit(f"dmmr-bench: {self.bin / tool} not found (build it, or pass --bin / set DMMR_BIN)")
+        self.env = dict(os.environ)
+        lp = self.run_cfg.get("lp_num_threads")
+        if lp:
+            self.env["LP_NUM_THREADS"] = str(lp)
+        self.mpi = ["mpirun", "--oversubscribe"]
+        if os.geteuid() == 0:
+            self.mpi.append("--allow-run-as-root")
+        if lp:
+            self.mpi += ["-x", "LP_NUM_THREADS"]
+        self.timings = {}  # label -> wall seconds
+
+    # --- plan -------------------------------------------------------------
+    def configurations(self):
+        """(label, clients, extra dmmr-render options) per scene, the sweep included."""
+        confs = []
+        for n in self.run_cfg.get("clients", [1, 2, 4]):
+            confs.append((f"render-c{n}", n, []))
+        sweep_n = self.run_cfg.get("sweep_clients", 1)
+        for t in self.run_cfg.get("query_thresholds", []):
+            if t == 0 and sweep_n in self.run_cfg.get("clients", []):
+                continue  # the plain run with sweep_n clients is threshold 0
+            confs.append((f"render-c{sweep_n}-t{t}", sweep_n, ["--query-threshold", str(t)]))
+        return confs
+
+    def scenes(self):
+        return self.cfg["scenes"]
+
+    def total_steps(self):
+        per_scene = 2 + 1 + 2 * len(self.configurations())  # generate, preprocess, reference, (render, compare)*
+        return per_scene * len(self.scenes())
+
+    # --- scenes -----------------------------------------------------------
+    def make_scene(self, sc, progress):
+        d = self.out / "scenes"
+        d.mkdir(parents=True, exist_ok=True)
+        name = sc["name"]
+        osgb, path, scene_dir = d / f"{name}.osgb", d / f"{name}.path", d / f"{name}.scene"
+        frames = sc.get("frames", self.cfg.get("frames", 40))
+        if osgb.exists() and path.exists():
+            progress.step(f"{name}: scene reused ({osgb})")
+        else:
+            kind = sc.get("kind", "replicate")
+            cmd = [self.bin / "dmmr-scenegen", kind]
+            if kind == "replicate":
+                cmd += ["--of", sc["of"], "--copies", sc["copies"]]
+            if "triangles" in sc:
+                cmd += ["--triangles", sc["triangles"]]
+            if "geodes" in sc:
+                cmd += ["--geodes", sc["geodes"]]
+            if "path" in sc:
+                cmd += ["--path", sc["path"]]
+            cmd += ["--seed", sc.get("seed", 1), "-o", osgb, "--walkthrough", path, "--frames", frames]
+            dt = run_cmd(cmd, self.log)
+            progress.step(f"{name}: generated in {dt:.1f} s")
+        if (scene_dir / "manifest.json").exists():
+            progress.step(f"{name}: preprocessed scene reused ({scene_dir})")
+        else:
+            if scene_dir.exists():
+                shutil.rmtree(scene_dir)
+            dt = run_cmd([self.bin / "dmmr-preprocess", osgb, "-o", scene_dir, "--no-progress"], self.log)
+            progress.step(f"{name}: preprocessed in {dt:.1f} s")
+        return scene_dir, path
+
+    # --- runs -------------------------------------------------------------
+    def common_opts(self, scene_dir, path, out_dir, stats):
+        return ["--scene", scene_dir, "--walkthrough", path, "--out", out_dir, "--stats", stats,
+                "--width", self.cfg.get("width", 512), "--height", self.cfg.get("height", 512),
+                "--backend", self.backend, "--no-progress"]
+
+    def _fresh(self, *paths):
+        for p in paths:
+            p = Path(p)
+            if p.is_dir():
+                shutil.rmtree(p)
+            elif p.exists():
+                p.unlink()
+
+    def run_scene(self, sc, progress):
+        name = sc["name"]
+        scene_dir, path = self.make_scene(sc, progress)
+        rd = self.out / "runs" / name
+        rd.mkdir(parents=True, exist_ok=True)
+        ref_dir, ref_csv = rd / "reference", rd / "reference.csv"
+        if self.resume and ref_csv.exists():
+            progress.step(f"{name}: dmmr-reference reused")
+        else:
+            self._fresh(ref_dir, ref_csv)
+            dt = run_cmd([self.bin / "dmmr-reference", *self.common_opts(scene_dir, path, ref_dir, ref_csv)],
+                         self.log, env=self.env)
+            self.timings[f"{name}/reference"] = dt
+            progress.step(f"{name}: dmmr-reference (brute force) in {dt:.1f} s")
+        for label, n, extra in self.configurations():
+            out_dir, csv = rd / label, rd / f"{label}.csv"
+            cmp_csv = rd / f"{label}.cmp.csv"
+            if self.resume and csv.exists() and cmp_csv.exists():
+                progress.step(f"{name}: {label} reused")
+                progress.step(f"{name}: {label} comparison reused")
+                continue
+            self._fresh(out_dir, csv, cmp_csv)
+            cmd = [*self.mpi, "-np", n + 1, self.bin / "dmmr-render",
+                   *self.common_opts(scene_dir, path, out_dir, csv),
+                   "--compress", self.run_cfg.get("compress", "lz4"),
+                   "--client-timeout", self.run_cfg.get("client_timeout", 600), *extra]
+            dt = run_cmd(cmd, self.log, env=self.env)
+            self.timings[f"{name}/{label}"] = dt
+            progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
+                          f"{' ' + ' '.join(extra) if extra else ''} in {dt:.1f} s")
+            # thresholds are checked by the report (conservative runs must be identical)
+            run_cmd([self.bin / "dmmr-compare", ref_dir, out_dir, "--csv", cmp_csv,
+                     "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
+            progress.step(f"{name}: {label} compared with the reference")
+        return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd)}

@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""CTest bench_small: runs `dmmr-bench paper --scale small` and checks the
+report's structure (files, JSON keys, Markdown tables, non-empty PNGs) and
+its accuracy columns (conservative runs: 0 differing pixels). Not timings.
+
+usage: check_report.py SOURCE_DIR BIN_DIR OUT_DIR"""
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+src, bin_dir, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print(f"FAIL: {what}", flush=True)
+
+
+if out.exists():
+    shutil.rmtree(out)  # a fresh run: the tool must generate its scenes too
+p = subprocess.run([sys.executable, str(src / "scripts" / "dmmr-bench"), "paper", "--scale", "small",
+                    "--bin", str(bin_dir), "--out", str(out)])
+check(p.returncode == 0, f"dmmr-bench exit status {p.returncode} (0 expected)")
+rep = out / "report"
+for f in ("summary.json", "report.md"):
+    check((rep / f).is_file() and (rep / f).stat().st_size > 0, f"report/{f} present and non-empty")
+if failures:
+    sys.exit(1)
+
+s = json.loads((rep / "summary.json").read_text())
+for k in ("suite", "scale", "command", "machine", "width", "height", "wall_s", "configurations", "scenes",
+          "accuracy_ok", "plots", "derived_definition"):
+    check(k in s, f"summary.json has key {k}")
+check(s.get("accuracy_ok") is True, "summary.json accuracy_ok is true")
+labels = [c["label"] for c in s.get("configurations", [])]
+for n in (1, 2, 4):
+    check(f"render-c{n}" in labels, f"configuration render-c{n}")
+check(any("--query-threshold" in c["options"] for c in s.get("configurations", [])), "a query-threshold sweep")
+check(len(s.get("scenes", [])) >= 2, "at least two scenes")
+for sc in s.get("scenes", []):
+    name = sc["scene"]
+    ref = sc["reference"]
+    check(ref["frames"] > 1 and ref["frame_ms_mean"] > 0, f"{name}: reference frames and frame time")
+    for label in labels:
+        r = sc["runs"].get(label)
+        check(r is not None, f"{name}: run {label}")
+        if r is None:
+            continue
+        for k in ("frame_ms_mean", "fps", "derived_frame_ms_mean", "speedup_vs_reference",
+                  "derived_speedup_vs_reference", "server", "per_client", "triangles_drawn_mean", "gpu_hit_rate",
+                  "bytes_sent_mean", "accuracy"):
+            check(k in r, f"{name}/{label}: key {k}")
+        check(len(r["per_client"]) == r["clients"], f"{name}/{label}: one entry per client")
+        for c in r["per_client"]:
+            for k in ("prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms", "send_ms", "work_ms",
+                      "triangles_mean", "bytes_sent_mean", "gpu_hit_rate"):
+                check(k in c, f"{name}/{label}: client key {k}")
+        check(r["frames"] == ref["frames"], f"{name}/{label}: as many frames as the reference")
+        check(r["accuracy"]["frames"] == ref["frames"], f"{name}/{label}: every frame compared")
+        check(r["triangles_drawn_mean"] > 0, f"{name}/{label}: triangles drawn")
+        if not r["options"]:
+            # conservative (exact) visibility: frames identical to the reference
+            check(r["accuracy"]["max_differing_pixels"] == 0, f"{name}/{label}: 0 differing pixels")
+            check(r["accuracy"]["min_psnr_db"] == "inf", f"{name}/{label}: PSNR inf")
+            check("derived_efficiency" in r and 0 < r["derived_efficiency"] < math.inf,
+                  f"{name}/{label}: derived efficiency")
+        else:
+            p_ = r["accuracy"]["min_psnr_db"]
+            check(p_ == "inf" or p_ > 15, f"{name}/{label}: approximate run's PSNR above 15 dB ({p_})")
+        for f in (f"{name}-{label}.csv", f"{name}-{label}.cmp.csv"):
+            check((rep / "csv" / f).is_file() and (rep / "csv" / f).stat().st_size > 0, f"csv/{f}")
+    check((rep / "csv" / f"{name}-reference.csv").is_file(), f"csv/{name}-reference.csv")
+
+for png in ("frame_time.png", "division_time.png", "query_prepare.png", "speed_error.png"):
+    f = rep / "plots" / png
+    ok = f.is_file() and f.stat().st_size > 1000 and f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    check(ok, f"plots/{png} is a non-empty PNG")
+    check(f"plots/{png}" in s.get("plots", []), f"summary.json lists plots/{png}")
+
+md = (rep / "report.md").read_text()
+for heading in ("## Where dmmr stands", "## Summary", "## Stage times", "## Speed against error", "## Plots"):
+    check(heading in md, f"report.md has '{heading}'")
+tables = [l for l in md.splitlines() if l.startswith("|---")]
+check(len(tables) >= 5, f"report.md has at least 5 Markdown tables ({len(tables)})")
+for n in (1, 2, 4):
+    check(f"#### dmmr with {n} client" in md, f"report.md has the {n}-client stage table")
+check("derived" in md and "FAIL" not in md, "report.md labels derived times and has no accuracy FAIL")
+
+print(f"bench_small: {len(failures)} failed checks; dmmr-bench wall {s.get('wall_s', 0):.1f} s")
+sys.exit(1 if failures else 0)
