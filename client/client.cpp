@@ -197,7 +197,7 @@ class VisibilityStage {
           size_t e = std::min(end, b + size);
           Box3d box;
           for (size_t k = b; k < e; ++k) box.expand(scene_.objects[candidates[k]].box);
-          if (boxReachesNearPlane(box, camera)) {
+          if (boxReachesNearPlane(box, camera, r.height())) {
             if (e - b == 1)
               passed.push_back(candidates[b]);
             else

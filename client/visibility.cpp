@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "draw.h"
+
 namespace dmmr {
 
 VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
@@ -33,20 +35,16 @@ std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& list
   return out;
 }
 
-bool boxReachesNearPlane(const Box3d& box, const Camera& camera) {
+bool boxReachesNearPlane(const Box3d& box, const Camera& camera, int height) {
   // Every point of the near rectangle lies within `reach` of the eye.
   double ty = std::tan(camera.fovy_deg * M_PI / 360.0), tx = ty * camera.aspect;
   double reach = camera.near * std::sqrt(1 + tx * tx + ty * ty) * 1.01;
   Vec3d e = camera.eye;
-  // Renderer::queryBox draws the box widened (half extents * 1.001 plus 1e-5
-  // of the distance to its centre and of its half diagonal): test that box,
-  // with twice the margin, since it is the one the near plane would clip.
-  Vec3d c = box.center() - e, h = box.extent() * 0.5;
-  double slack = 2e-5 * (length(c) + length(h)) + 1e-9;
-  Vec3d lo = box.center() - (h * 1.002 + Vec3d{slack, slack, slack});
-  Vec3d hi = box.center() + (h * 1.002 + Vec3d{slack, slack, slack});
-  Vec3d nearest{std::clamp(e.x, lo.x, hi.x), std::clamp(e.y, lo.y, hi.y),
-                std::clamp(e.z, lo.z, hi.z)};
+  // Test the box Renderer::queryBox draws, widened once more for margin,
+  // since it is the one the near plane would clip.
+  Box3d q = queryBoxBounds(queryBoxBounds(box, camera, height), camera, height);
+  Vec3d nearest{std::clamp(e.x, q.lo.x, q.hi.x), std::clamp(e.y, q.lo.y, q.hi.y),
+                std::clamp(e.z, q.lo.z, q.hi.z)};
   return length(nearest - e) <= reach;
 }
 

@@ -65,6 +65,7 @@ std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& list
 
 // True when the box comes within reach of the near plane's rectangle, where a
 // query on it would be clipped away and prove nothing.
-bool boxReachesNearPlane(const Box3d& box, const Camera& camera);
+// `height`: the frame's, for the query box's pixel margin (queryBoxBounds).
+bool boxReachesNearPlane(const Box3d& box, const Camera& camera, int height);
 
 }  // namespace dmmr

@@ -299,13 +299,19 @@ void Renderer::beginQueries() {
   gl_.BindVertexArray(box_vao_);
 }
 
-void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
-  // Camera-relative placement in double; widen by a relative and an absolute
-  // margin so the box's front faces stay in front of the geometry inside it
-  // after float rounding.
-  Vec3d c = box.center() - camera_.eye, h = box.extent() * 0.5;
-  double slack = 1e-5 * (length(c) + length(h)) + 1e-9;
+Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height) {
+  Vec3d c = box.center() - camera.eye, h = box.extent() * 0.5;
+  double far = length(c) + length(h);
+  double pixel = far * 2 * std::tan(camera.fovy_deg * M_PI / 360.0) / height;
+  double slack = 1e-5 * far + 1e-9 + pixel / 8;
   Vec3d half{h.x * 1.001 + slack, h.y * 1.001 + slack, h.z * 1.001 + slack};
+  return Box3d{box.center() - half, box.center() + half};
+}
+
+void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
+  // Camera-relative placement in double (see queryBoxBounds for the margin).
+  Box3d q = queryBoxBounds(box, camera_, height_);
+  Vec3d c = q.center() - camera_.eye, half = q.extent() * 0.5;
   Mat4d mv = view_rotation_ * Mat4d::translate(c) * Mat4d::scale(half);
   float mvf[16];
   toFloat(mv, mvf);

@@ -36,6 +36,16 @@ uint64_t gpuBytes(const GeometryData& g);
 // ... and uploadTexture for `t` (RGBA8 with its mipmap chain, at most 4/3).
 uint64_t gpuBytes(const TextureData& t);
 
+// The box an occlusion query on `box` draws: `box` widened so that, after
+// float rounding and the rasteriser snapping vertices to its sub-pixel grid,
+// its front faces still lie in front of everything inside it and its
+// outline still covers every pixel centre the contents can cover: half
+// extents * 1.001, plus 1e-5 of the distance to its far side (depth
+// rounding), plus an eighth of a pixel at that distance for a frame
+// `height` pixels high (llvmpipe snaps to 1/256 pixel; a sub-pixel object
+// widened by 0.1% alone could cover a pixel centre its box missed).
+Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height);
+
 struct Rgb {
   float r = 0.2f, g = 0.22f, b = 0.26f;
 };

@@ -138,9 +138,11 @@ TEST_F(OcclusionQuery, BoxCoplanarWithTheWallsFrontFacePasses) {
   EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -5})), 1u);
   // A flat box in the wall's plane.
   EXPECT_EQ(query({wall}, box({-1, -1, -5}, {1, 1, -5})), 1u);
-  // Versus a box one centimetre behind the wall: hidden, so the widening of
-  // query boxes does not make everything near a wall pass.
-  EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -5.01})), 0u);
+  // Versus a box 5 cm behind the wall: hidden, so the widening of query
+  // boxes does not make everything near a wall pass. (The widening includes
+  // an eighth of a pixel at the box's far side, about 1 cm in this 64-pixel
+  // frame: see queryBoxBounds.)
+  EXPECT_EQ(query({wall}, box({-1, -1, -6}, {1, 1, -5.05})), 0u);
 }
 
 TEST_F(OcclusionQuery, BoxSeenThroughAOnePixelGapPasses) {
@@ -192,7 +194,7 @@ TEST_F(OcclusionQuery, BoxesNotTakenAtTheNearPlaneGiveAnHonestQuery) {
   // The object changes the picture (its near quad covers everything).
   std::vector<uint8_t> without = render({occluder}), with = render({occluder, object});
   ASSERT_NE(without, with);
-  bool taken = boxReachesNearPlane(object_box, camera_);
+  bool taken = boxReachesNearPlane(object_box, camera_, kSize);
   EXPECT_TRUE(taken || query({occluder}, object_box) != 0)
       << "a visible object would be culled: not taken at the near plane, and its query fails";
 }

@@ -10,6 +10,7 @@
 #include <set>
 #include <vector>
 
+#include "draw.h"
 #include "visibility.h"
 
 using namespace dmmr;
@@ -151,22 +152,26 @@ Box3d cube(Vec3d center, double half) {
 
 }  // namespace
 
+// Frames so tall that the query boxes' pixel margin vanishes: these tests
+// are about the near plane's geometry.
+constexpr int kTall = 1 << 24;
+
 TEST(BoxReachesNearPlane, EyeInsideTheBox) {
   Camera c = unitCamera(0.1);
-  EXPECT_TRUE(boxReachesNearPlane(cube({0, 0, 0}, 1), c));
-  EXPECT_TRUE(boxReachesNearPlane(cube({0.5, -0.3, 0.2}, 1), c));
+  EXPECT_TRUE(boxReachesNearPlane(cube({0, 0, 0}, 1), c, kTall));
+  EXPECT_TRUE(boxReachesNearPlane(cube({0.5, -0.3, 0.2}, 1), c, kTall));
   // A box the eye touches from outside.
   Box3d touching;
   touching.lo = {0, -1, -1};
   touching.hi = {2, 1, 1};
-  EXPECT_TRUE(boxReachesNearPlane(touching, c));
+  EXPECT_TRUE(boxReachesNearPlane(touching, c, kTall));
 }
 
 TEST(BoxReachesNearPlane, FarBoxesDoNot) {
   Camera c = unitCamera(0.1);
-  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -10}, 1), c));   // far in front
-  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, 10}, 1), c));    // far behind
-  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -1.2}, 1), c));  // 0.2 ahead: twice near
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -10}, 1), c, kTall));   // far in front
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, 10}, 1), c, kTall));    // far behind
+  EXPECT_FALSE(boxReachesNearPlane(cube({0, 0, -1.2}, 1), c, kTall));  // 0.2 ahead: twice near
 }
 
 TEST(BoxReachesNearPlane, NearRectangleCornerDistance) {
@@ -181,11 +186,11 @@ TEST(BoxReachesNearPlane, NearRectangleCornerDistance) {
     // Place a tiny cube so that its nearest point to the eye is at `d`.
     auto at = [&](double d) { return cube(dir * (d + tiny * std::sqrt(3.0)), tiny); };
     SCOPED_TRACE("near " + std::to_string(near));
-    EXPECT_TRUE(boxReachesNearPlane(at(corner * 0.999), c));  // on the rectangle
-    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.000), c));  // its corner
-    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.005), c));  // inside the 1% margin
-    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.02), c));  // just beyond
-    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.5), c));
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 0.999), c, kTall));  // on the rectangle
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.000), c, kTall));  // its corner
+    EXPECT_TRUE(boxReachesNearPlane(at(corner * 1.005), c, kTall));  // inside the 1% margin
+    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.02), c, kTall));  // just beyond
+    EXPECT_FALSE(boxReachesNearPlane(at(corner * 1.5), c, kTall));
   }
 }
 
@@ -205,14 +210,14 @@ TEST(BoxReachesNearPlane, UsesAspectAndFov) {
     b.hi = {x0 + 1, 0.01, 0.01};
     return b;
   };
-  EXPECT_TRUE(boxReachesNearPlane(slab(corner * 0.99), c));
-  EXPECT_FALSE(boxReachesNearPlane(slab(corner * 1.05), c));
+  EXPECT_TRUE(boxReachesNearPlane(slab(corner * 0.99), c, kTall));
+  EXPECT_FALSE(boxReachesNearPlane(slab(corner * 1.05), c, kTall));
   Box3d ahead;
   ahead.lo = {-0.5, -0.5, -10};
   ahead.hi = {0.5, 0.5, -corner * 1.0};
-  EXPECT_TRUE(boxReachesNearPlane(ahead, c));
+  EXPECT_TRUE(boxReachesNearPlane(ahead, c, kTall));
   ahead.hi.z = -corner * 1.05;
-  EXPECT_FALSE(boxReachesNearPlane(ahead, c));
+  EXPECT_FALSE(boxReachesNearPlane(ahead, c, kTall));
 }
 
 TEST(BoxReachesNearPlane, CountsTheWideningOfQueryBoxes) {
@@ -225,8 +230,27 @@ TEST(BoxReachesNearPlane, CountsTheWideningOfQueryBoxes) {
   Box3d deep;
   deep.lo = {-100, -100, -200};
   deep.hi = {100, 100, -0.05};
-  EXPECT_TRUE(boxReachesNearPlane(deep, c));
+  EXPECT_TRUE(boxReachesNearPlane(deep, c, kTall));
   // The same front face on a box 1 m deep does not come near.
   deep.lo.z = -1.05;
-  EXPECT_FALSE(boxReachesNearPlane(deep, c));
+  EXPECT_FALSE(boxReachesNearPlane(deep, c, kTall));
+}
+
+TEST(BoxReachesNearPlane, CountsThePixelMarginOfQueryBoxes) {
+  // A box 1 cm beyond the near rectangle's reach: clear of it in a tall
+  // frame; in a 2-pixel-high frame an eighth of a pixel at its far side is
+  // centimetres, and the widened query box reaches the near plane.
+  Camera c = unitCamera(0.01);
+  Box3d b = cube({0, 0, -0.07}, 0.05);  // front face at z = -0.02
+  EXPECT_FALSE(boxReachesNearPlane(b, c, kTall));
+  EXPECT_TRUE(boxReachesNearPlane(b, c, 2));
+}
+
+TEST(QueryBoxBounds, WidensByAnEighthOfAPixelAtTheFarSide) {
+  Camera c = unitCamera(0.01);
+  Box3d b = cube({0, 0, -10}, 0.0);  // a point 10 ahead
+  Box3d q = queryBoxBounds(b, c, 1000);
+  double pixel = 10 * 2 * std::tan(c.fovy_deg * M_PI / 360.0) / 1000;
+  EXPECT_NEAR(q.extent().x / 2, pixel / 8 + 1e-4 + 1e-9, 1e-12);
+  EXPECT_TRUE(q.lo.z < -10 && q.hi.z > -10);
 }
