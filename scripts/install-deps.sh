@@ -11,6 +11,7 @@ packages=(
   libmeshoptimizer-dev libcli11-dev nlohmann-json3-dev
   googletest libgtest-dev
   clang libclang-rt-14-dev
+  libasan8 libubsan1 libtsan2  # gcc's sanitizer runtimes (CMakePresets.json)
   python3 time
   python3-matplotlib
 )

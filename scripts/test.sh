@@ -2,7 +2,11 @@
 # Quick start 2: installs what is missing, builds, runs the whole test suite.
 # Extra arguments go to ctest (e.g. scripts/test.sh -L unit). Then every file
 # reader's libFuzzer target runs a bounded number of inputs (clang build in
-# build-fuzz/; DMMR_SKIP_FUZZ=1 skips it).
+# build-fuzz/; DMMR_SKIP_FUZZ=1 skips it). Then the sanitizer presets
+# (CMakePresets.json; docs/robustness.md, "Sanitizers"): the whole suite under
+# ASan+LSan+UBSan in build-asan/, then the queue and cache tests and the
+# distributed pipeline tests under TSan in build-tsan/ (DMMR_SKIP_SANITIZERS=1
+# skips both, DMMR_SKIP_TSAN=1 only TSan).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
@@ -14,4 +18,19 @@ if [ -z "${DMMR_SKIP_FUZZ:-}" ]; then
     -DDMMR_FUZZ=ON >/dev/null
   cmake --build build-fuzz -j "$(nproc)" --target dmmr_fuzz
   (cd build-fuzz && ctest --output-on-failure -L fuzz --timeout 300)
+fi
+
+if [ -z "${DMMR_SKIP_SANITIZERS:-}" ]; then
+  start=$SECONDS
+  cmake --preset asan-ubsan >/dev/null
+  cmake --build --preset asan-ubsan -j "$(nproc)"
+  ctest --preset asan-ubsan -j "$(nproc)"
+  echo "test.sh: asan-ubsan built and passed in $((SECONDS - start)) s"
+  if [ -z "${DMMR_SKIP_TSAN:-}" ]; then
+    start=$SECONDS
+    cmake --preset tsan >/dev/null
+    cmake --build --preset tsan -j "$(nproc)"
+    ctest --preset tsan -j "$(nproc)"
+    echo "test.sh: tsan built and passed in $((SECONDS - start)) s"
+  fi
 fi

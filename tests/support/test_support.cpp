@@ -34,6 +34,10 @@ std::string tool(const std::string& name) {
 std::string mpirun(int np) {
   std::string cmd = "mpirun --oversubscribe -np " + std::to_string(np);
   if (::geteuid() == 0) cmd += " --allow-run-as-root";
+  // The sanitizer builds' settings (suppressions, halt_on_error, leak
+  // checks: tests/sanitizers/) go to every rank, wherever it runs.
+  for (const char* var : {"ASAN_OPTIONS", "LSAN_OPTIONS", "UBSAN_OPTIONS", "TSAN_OPTIONS"})
+    if (std::getenv(var)) cmd += std::string(" -x ") + var;
   return cmd;
 }
 

@@ -40,7 +40,8 @@ std::string sharedModelsDir();
 // build/bin/NAME.
 std::string tool(const std::string& name);
 // "mpirun -np N" with the flags this machine needs (--oversubscribe, and
-// --allow-run-as-root when running as root).
+// --allow-run-as-root when running as root), exporting the sanitizers'
+// *SAN_OPTIONS to the ranks when they are set.
 std::string mpirun(int np);
 // Runs a shell command; returns its exit status (-1 when it did not exit).
 int run(const std::string& command);
