@@ -55,15 +55,6 @@ PlantFixture& plant() {
   return *p;
 }
 
-// Flips the bits of one byte, so the file changes whatever the byte held.
-void flipByte(const std::string& file, std::streamoff offset) {
-  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(offset);
-  char c = char(f.get() ^ 0x5a);
-  f.seekp(offset);
-  f.put(c);
-}
-
 // GPU memory as a counter: what is live now and at most.
 class FakeBackend : public MeshBackend {
  public:
@@ -233,7 +224,7 @@ TEST(HostCache, ACorruptFileIsSkippedOnceAndNeverReadAgain) {
   TempDir d;
   fs::copy(p.scene.dir, d / "scene", fs::copy_options::recursive);
   Scene scene = loadScene(d / "scene");
-  flipByte(d / "scene/geometry/000002.bin", 40);
+  test::flipByte(d / "scene/geometry/000002.bin", 40);
   HostCache cache(scene, {});
   testing::internal::CaptureStderr();
   EXPECT_FALSE(cache.get(2));

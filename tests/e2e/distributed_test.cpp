@@ -85,15 +85,6 @@ struct SmallScene {
   }
 };
 
-// Flips the bits of one byte, so the file changes whatever the byte held.
-void flipByte(const std::string& file, std::streamoff offset) {
-  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(offset);
-  char c = char(f.get() ^ 0x5a);
-  f.seekp(offset);
-  f.put(c);
-}
-
 // Frames on disk after a failed run are whole and equal the reference's.
 void expectFramesIntact(const std::string& reference, const std::string& out) {
   if (!fs::exists(out)) return;
@@ -159,7 +150,7 @@ TEST(DistributedErrors, CorruptSceneStopsTheRunWithOneMessageFromTheServer) {
   SmallScene& s = smallScene();
   std::string bad = s.dir / "badscene";
   fs::copy(s.scene, bad, fs::copy_options::recursive);
-  flipByte(bad + "/skeleton.bin", 40);
+  test::flipByte(bad + "/skeleton.bin", 40);
   int status = 0;
   std::string log = s.render(2, s.dir / "bad", "", &status, bad);
   EXPECT_NE(status, 0);
@@ -267,7 +258,7 @@ TEST(DistributedErrors, CorruptGeometryIsSkippedAndCountedAndTheRunGoesOn) {
   fs::copy(s.scene, bad, fs::copy_options::recursive);
   // One geometry file that no longer matches the manifest's checksum.
   std::string victim = bad + "/geometry/000003.bin";
-  flipByte(victim, 30);
+  test::flipByte(victim, 30);
   std::string ref = s.dir / "onebad-reference", out = s.dir / "onebad";
   int status = 0;
   std::string refLog = test::runCapture(test::tool("dmmr-reference") +

@@ -1,5 +1,7 @@
 #include "test_support.h"
 
+#include <fstream>
+
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -59,6 +61,14 @@ std::string runCapture(const std::string& command, int* status) {
   int s = ::pclose(p);
   *status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
   return out;
+}
+
+void flipByte(const std::string& file, long offset) {
+  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(offset);
+  char c = char(f.get() ^ 0x5a);
+  f.seekp(offset);
+  f.put(c);
 }
 
 }  // namespace dmmr::test

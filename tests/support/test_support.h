@@ -48,4 +48,8 @@ int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.
 std::string runCapture(const std::string& command, int* status);
 
+// Flips the bits of the byte at `offset`, so the file changes whatever the
+// byte held.
+void flipByte(const std::string& file, long offset);
+
 }  // namespace dmmr::test
