@@ -163,7 +163,6 @@ void HostCache::admit(uint32_t geometry, const Bytes& bytes, bool urgent) {
     return;
   }
   store_->put(geometry, bytes);
-  stats_.resident = lru_.used();
 }
 
 void HostCache::markBad(uint32_t geometry, const std::string& why) {

@@ -88,7 +88,7 @@ class HostCache {
   mutable std::mutex mu_;
   std::condition_variable changed_;  // in-flight reads finished, requests queued
   LruBudget lru_;
-  HostCacheStats stats_;
+  HostCacheStats stats_;                            // counters; stats() adds resident from lru_
   std::vector<uint8_t> bad_, in_flight_, queued_;   // per geometry
   std::deque<std::pair<uint32_t, bool>> requests_;  // geometry, urgent
   bool loader_busy_ = false;

@@ -69,21 +69,13 @@ struct ReplicatedPlant {
     EXPECT_NE(status, 124) << "timed out\n" << log;
     EXPECT_EQ(status, 0) << log;
     std::map<std::string, std::pair<uint64_t, uint64_t>> cols;
-    std::ifstream csv(out + ".csv");
-    std::string header, line, cell;
-    std::getline(csv, header);
-    std::vector<std::string> names;
-    for (std::stringstream hs(header); std::getline(hs, cell, ',');) names.push_back(cell);
-    while (std::getline(csv, line)) {
-      std::stringstream ls(line);
-      for (size_t c = 0; std::getline(ls, cell, ',') && c < names.size(); ++c) {
-        if (names[c].find("_ms") != std::string::npos) continue;
-        uint64_t v = std::stoull(cell);
-        auto& [sum, max] = cols[names[c]];
-        sum += v;
-        max = std::max(max, v);
+    for (const auto& row : test::readCsv(out + ".csv"))
+      for (const auto& [name, value] : row) {
+        if (name.find("_ms") != std::string::npos) continue;
+        auto& [sum, max] = cols[name];
+        sum += uint64_t(value);
+        max = std::max(max, uint64_t(value));
       }
-    }
     return cols;
   }
 };

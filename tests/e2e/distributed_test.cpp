@@ -281,17 +281,10 @@ TEST(DistributedErrors, CorruptGeometryIsSkippedAndCountedAndTheRunGoesOn) {
     changed += d.diff.differing_pixels;
   EXPECT_GT(changed, 0u) << "geometry 3 shows in no frame: the test proves nothing";
   // Each client counts it once, in the skipped columns.
-  std::ifstream csv(out + ".csv");
-  std::string header, line;
-  std::getline(csv, header);
-  std::vector<std::string> cols;
-  for (std::stringstream hs(header); std::getline(hs, line, ',');) cols.push_back(line);
   uint64_t skipped = 0;
-  while (std::getline(csv, line)) {
-    std::stringstream ls(line);
-    for (size_t c = 0; std::getline(ls, line, ','); ++c)
-      if (cols[c].ends_with("_skipped")) skipped += std::stoull(line);
-  }
+  for (const auto& row : test::readCsv(out + ".csv"))
+    for (const auto& [name, value] : row)
+      if (name.ends_with("_skipped")) skipped += uint64_t(value);
   EXPECT_GE(skipped, 1u);
   EXPECT_LE(skipped, 2u);
 }

@@ -90,32 +90,6 @@ PlantScene& plant() {
   return *s;
 }
 
-// The stats CSV as one map per row, column name to value.
-std::vector<std::map<std::string, double>> readCsv(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::vector<std::string> header;
-  std::vector<std::map<std::string, double>> rows;
-  auto split = [](const std::string& s) {
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) out.push_back(cell);
-    return out;
-  };
-  if (!std::getline(in, line)) return rows;
-  header = split(line);
-  while (std::getline(in, line)) {
-    std::vector<std::string> cells = split(line);
-    EXPECT_EQ(cells.size(), header.size()) << line;
-    std::map<std::string, double> row;
-    for (size_t i = 0; i < cells.size() && i < header.size(); ++i)
-      row[header[i]] = std::stod(cells[i]);
-    rows.push_back(row);
-  }
-  return rows;
-}
-
 double column(const std::map<std::string, double>& row, const std::string& name) {
   auto it = row.find(name);
   EXPECT_NE(it, row.end()) << "no column " << name;
@@ -150,7 +124,7 @@ TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
   ASSERT_EQ(diffs.size(), kFlyFrames);
   for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
 
-  std::vector<std::map<std::string, double>> rows = readCsv(out + ".csv");
+  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   size_t culled_frames = 0;
   double drawn = 0, in_frustum = 0;
@@ -187,7 +161,7 @@ TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
   std::string out = s.dir / "off";
   ASSERT_EQ(s.render(2, s.fly, out, "--visibility off --stats " + out + ".csv"), 0);
   EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0);
-  std::vector<std::map<std::string, double>> rows = readCsv(out + ".csv");
+  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   for (const auto& row : rows) {
     EXPECT_GE(clientSum(row, 2, "triangles"), column(row, "triangles_in_frustum"));
@@ -217,7 +191,7 @@ TEST(VisibilityStageApproximate, ThresholdAndKeepFramesComplete) {
   RecordProperty("differing_pixels", std::to_string(differing));
   std::printf("--query-threshold 50 --keep-frames 10: %lld differing pixels over %u frames\n",
               (long long)differing, kFlyFrames);
-  EXPECT_EQ(readCsv(out + ".csv").size(), kFlyFrames);
+  EXPECT_EQ(test::readCsv(out + ".csv").size(), kFlyFrames);
 }
 
 // A closed room (one box, seen from inside through its back faces) with

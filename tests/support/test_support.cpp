@@ -1,6 +1,7 @@
 #include "test_support.h"
 
 #include <fstream>
+#include <sstream>
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -61,6 +62,31 @@ std::string runCapture(const std::string& command, int* status) {
   int s = ::pclose(p);
   *status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
   return out;
+}
+
+std::vector<std::map<std::string, double>> readCsv(const std::string& path) {
+  std::ifstream in(path);
+  auto split = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    return cells;
+  };
+  std::vector<std::map<std::string, double>> rows;
+  std::string line;
+  if (!std::getline(in, line)) throw Error(fileError(path, "no header line"));
+  std::vector<std::string> header = split(line);
+  for (long number = 2; std::getline(in, line); ++number) {
+    std::vector<std::string> cells = split(line);
+    if (cells.size() != header.size())
+      throw Error(fileError(path, number,
+                            "has " + std::to_string(cells.size()) + " cells, the header " +
+                                std::to_string(header.size())));
+    std::map<std::string, double> row;
+    for (size_t i = 0; i < cells.size(); ++i) row[header[i]] = std::stod(cells[i]);
+    rows.push_back(std::move(row));
+  }
+  return rows;
 }
 
 void flipByte(const std::string& file, long offset) {

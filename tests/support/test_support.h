@@ -4,7 +4,9 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "error.h"
 
@@ -47,6 +49,11 @@ std::string mpirun(int np);
 int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.
 std::string runCapture(const std::string& command, int* status);
+
+// A numeric CSV (the stats files) as one map per row, column name to value.
+// Throws Error naming the file and line when a row's cells do not match the
+// header.
+std::vector<std::map<std::string, double>> readCsv(const std::string& path);
 
 // Flips the bits of the byte at `offset`, so the file changes whatever the
 // byte held.
