@@ -169,7 +169,7 @@ class VisibilityStage {
   void drawDepth(uint32_t object) {
     const ObjectBounds& o = scene_.objects[object];
     if (const GpuMesh* mesh = gl_.meshes.acquire(o.geometry))  // null: skipped, counted
-      gl_.renderer.drawDepth(*mesh, o.transform, opts_.occluder_lod);
+      gl_.renderer.drawDepth(*mesh, o.transform, o.box, opts_.occluder_lod);
   }
 
   struct QueryTally {
@@ -274,7 +274,7 @@ class RenderStage {
       const GpuMesh* mesh = gl_.meshes.acquire(o.geometry);
       st.load_ms += msSince(tl);
       if (!mesh) continue;  // unreadable geometry: skipped, counted
-      r.draw(*mesh, o.transform, gl_.meshes.textures());
+      r.draw(*mesh, o.transform, o.box, gl_.meshes.textures());
       st.triangles += mesh->triangles;
     }
     r.finish();

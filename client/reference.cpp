@@ -45,7 +45,7 @@ ExactVisible exactVisible(const Scene& scene, GpuCache& meshes, Renderer& r, con
   r.beginIdFrame(cam, full);
   for (uint32_t i = 0; i < scene.objects.size(); ++i)
     if (const GpuMesh* mesh = meshes.acquire(scene.objects[i].geometry))
-      r.drawId(*mesh, scene.objects[i].transform, i);
+      r.drawId(*mesh, scene.objects[i].transform, scene.objects[i].box, i);
   std::vector<uint8_t> px;
   r.readPixels(full, &px);
   std::vector<uint8_t> seen(scene.objects.size(), 0);
@@ -97,7 +97,7 @@ void runReference(const ReferenceOptions& opts) {
     for (const ObjectBounds& o : scene.objects) {  // ascending object index
       const GpuMesh* mesh = meshes.acquire(o.geometry);
       if (!mesh) continue;  // unreadable geometry: warned about, skipped
-      renderer.draw(*mesh, o.transform, meshes.textures());
+      renderer.draw(*mesh, o.transform, o.box, meshes.textures());
       tris += mesh->triangles;
     }
     renderer.readPixels(full, &pixels);

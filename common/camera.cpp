@@ -1,5 +1,8 @@
 #include "camera.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace dmmr {
 
 std::ostream& operator<<(std::ostream& os, const Camera& c) {
@@ -46,6 +49,35 @@ std::array<Plane, 5> frustumPlanes(const Camera& c) {
     out[i] = {n, eye[i].d / len - dot(n, c.eye)};
   }
   return out;
+}
+
+EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c) {
+  // The ray through (ndc_x, ndc_y) has eye-space direction (ndc_x tx, ndc_y ty, -1),
+  // so a point at eye distance t is eye + t d with d its world direction; the
+  // slab face x_i = f is reached at t = (f - eye_i) / d_i, depth near / t.
+  Mat4d r = Mat4d::rotation(c.rotation);  // camera to world
+  double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+  EntryDepthPlanes p;
+  for (int i = 0; i < 3; ++i) {
+    double e = c.eye[i], face;
+    if (e < box.lo[i])
+      face = box.lo[i];
+    else if (e > box.hi[i])
+      face = box.hi[i];
+    else {
+      p.k[i] = {0, 0, kNoDepthBound};
+      continue;
+    }
+    double s = c.near / (face - e);
+    p.k[i] = {s * r.at(i, 0) * tx, s * r.at(i, 1) * ty, -s * r.at(i, 2)};
+  }
+  return p;
+}
+
+double entryDepth(const EntryDepthPlanes& p, double ndc_x, double ndc_y) {
+  double d = kNoDepthBound;
+  for (const auto& k : p.k) d = std::min(d, k[0] * ndc_x + k[1] * ndc_y + k[2]);
+  return d;
 }
 
 }  // namespace dmmr

@@ -33,6 +33,25 @@ Mat4d projectionMatrix(const Camera& c);
 // at infinity and omitted. Points on the inside have distance >= 0.
 std::array<Plane, 5> frustumPlanes(const Camera& c);
 
+// The depth (near / eye distance, as the projection writes it) at which the
+// ray through a point of the image first enters `box`, as three linear
+// functions of the point's normalised device coordinates, one per world axis:
+// depth_i = k[i][0] * ndc_x + k[i][1] * ndc_y + k[i][2]. Along a ray the box
+// is entered where the last of the three slabs is, so the entry depth is the
+// smallest of the three (entryDepth). An axis whose slab holds the eye sets no
+// bound (0, 0, kNoDepthBound). A value <= 0 means the ray never enters that
+// slab, so it misses the box. Renderers clamp each fragment's depth to this
+// bound (see draw.h), which makes "a box lies in front of what it encloses"
+// hold for every fragment the rasteriser makes, slivers included.
+struct EntryDepthPlanes {
+  std::array<std::array<double, 3>, 3> k{};
+  friend bool operator==(const EntryDepthPlanes&, const EntryDepthPlanes&) = default;
+};
+inline constexpr double kNoDepthBound = 1e30;
+// `box` valid; the eye may be anywhere (inside on every axis: no bound at all).
+EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c);
+double entryDepth(const EntryDepthPlanes& p, double ndc_x, double ndc_y);
+
 }  // namespace dmmr
 
 namespace dmmr {

@@ -31,9 +31,32 @@ void main() {
 }
 )";
 
+// Shared by the fragment shaders that draw geometry (shading, depth and id):
+// the fragment's depth, clamped to where the ray through its pixel centre
+// enters its object's bound box (camera.h, entryDepthPlanes; the planes come
+// from Renderer::setDepthBound). Rasterisers interpolate depth from plane
+// equations that, for a sliver triangle seen almost edge-on, can put a
+// covered pixel far nearer than any of the triangle's vertices (seen on
+// llvmpipe: 14 m in front of its object's box at 200 m). Clamped, no fragment
+// of an object lies in front of its box, which the occlusion queries'
+// exactness rests on; for every other fragment the clamp changes nothing, as
+// the bound box is wider than the object's own. Depth only ever decreases
+// (reversed-Z), hence depth_less; a ray that misses the box gives depth 0,
+// which never passes GL_GREATER against the cleared 0.
+const char* kBoundedDepth = R"(#version 450 core
+layout(depth_less) out float gl_FragDepth;
+uniform vec3 u_bound[3];
+uniform vec2 u_ndc_scale;
+float boundedDepth() {
+  vec3 p = vec3(gl_FragCoord.xy * u_ndc_scale - 1.0, 1.0);
+  precise float b = min(min(dot(u_bound[0], p), dot(u_bound[1], p)), dot(u_bound[2], p));
+  return max(min(gl_FragCoord.z, b), 0.0);
+}
+)";
+
 // Two-sided headlight shading. Without normals, the facet normal comes from
 // screen-space derivatives of the eye position (flat shading).
-const char* kFragmentShader = R"(#version 450 core
+const char* kFragmentShader = R"(
 uniform vec4 u_diffuse;
 uniform int u_has_texture;
 uniform sampler2D u_tex;
@@ -53,6 +76,7 @@ void main() {
   vec4 base = u_diffuse * v_col;
   if (u_has_texture != 0) base *= texture(u_tex, v_uv);
   o_color = vec4(base.rgb * (0.3 + 0.7 * lambert), 1.0);
+  gl_FragDepth = boundedDepth();
 }
 )";
 
@@ -63,10 +87,13 @@ uniform mat4 u_proj;
 void main() { gl_Position = u_proj * (u_mv * vec4(a_pos, 1.0)); }
 )";
 
-const char* kIdFragmentShader = R"(#version 450 core
+const char* kIdFragmentShader = R"(
 uniform vec4 u_color;
 out vec4 o_color;
-void main() { o_color = u_color; }
+void main() {
+  o_color = u_color;
+  gl_FragDepth = boundedDepth();
+}
 )";
 
 const char* kBoxFragmentShader = R"(#version 450 core
@@ -74,9 +101,14 @@ out vec4 o_color;
 void main() { o_color = vec4(1.0); }
 )";
 
-GLuint compile(const GlApi& gl, GLenum type, const char* src) {
+// `prefix` (may be null) goes before `src`; the #version line is in the first.
+GLuint compile(const GlApi& gl, GLenum type, const char* src, const char* prefix = nullptr) {
   GLuint s = gl.CreateShader(type);
-  gl.ShaderSource(s, 1, &src, nullptr);
+  const char* parts[2] = {prefix, src};
+  if (prefix)
+    gl.ShaderSource(s, 2, parts, nullptr);
+  else
+    gl.ShaderSource(s, 1, &src, nullptr);
   gl.CompileShader(s);
   GLint ok = 0;
   gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
@@ -89,9 +121,9 @@ GLuint compile(const GlApi& gl, GLenum type, const char* src) {
   return s;
 }
 
-GLuint link(const GlApi& gl, const char* vsSrc, const char* fsSrc) {
+GLuint link(const GlApi& gl, const char* vsSrc, const char* fsSrc, const char* fsPrefix = nullptr) {
   GLuint vs = compile(gl, GL_VERTEX_SHADER, vsSrc);
-  GLuint fs = compile(gl, GL_FRAGMENT_SHADER, fsSrc);
+  GLuint fs = compile(gl, GL_FRAGMENT_SHADER, fsSrc, fsPrefix);
   GLuint program = gl.CreateProgram();
   gl.AttachShader(program, vs);
   gl.AttachShader(program, fs);
@@ -134,9 +166,15 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw Error("the frame's framebuffer is incomplete");
 
-  program_ = link(gl_, kVertexShader, kFragmentShader);
+  program_ = link(gl_, kVertexShader, kFragmentShader, kBoundedDepth);
   box_program_ = link(gl_, kBoxVertexShader, kBoxFragmentShader);
-  id_program_ = link(gl_, kBoxVertexShader, kIdFragmentShader);
+  id_program_ = link(gl_, kBoxVertexShader, kIdFragmentShader, kBoundedDepth);
+  u_bound_ = gl_.GetUniformLocation(program_, "u_bound");
+  u_id_bound_ = gl_.GetUniformLocation(id_program_, "u_bound");
+  for (GLuint p : {program_, id_program_}) {
+    gl_.UseProgram(p);
+    gl_.Uniform2f(gl_.GetUniformLocation(p, "u_ndc_scale"), 2.f / float(width), 2.f / float(height));
+  }
   u_id_mv_ = gl_.GetUniformLocation(id_program_, "u_mv");
   u_id_proj_ = gl_.GetUniformLocation(id_program_, "u_proj");
   u_id_color_ = gl_.GetUniformLocation(id_program_, "u_color");
@@ -299,13 +337,35 @@ void Renderer::beginQueries() {
   gl_.BindVertexArray(box_vao_);
 }
 
-Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height) {
+namespace {
+// `box` widened by `part` of queryBoxBounds' margin.
+Box3d widened(const Box3d& box, const Camera& camera, int height, double part) {
   Vec3d c = box.center() - camera.eye, h = box.extent() * 0.5;
   double far = length(c) + length(h);
   double pixel = far * 2 * std::tan(camera.fovy_deg * M_PI / 360.0) / height;
-  double slack = 1e-5 * far + 1e-9 + pixel / 8;
-  Vec3d half{h.x * 1.001 + slack, h.y * 1.001 + slack, h.z * 1.001 + slack};
+  double slack = (1e-5 * far + 1e-9 + pixel / 8) * part;
+  double scale = 1 + 0.001 * part;
+  Vec3d half{h.x * scale + slack, h.y * scale + slack, h.z * scale + slack};
   return Box3d{box.center() - half, box.center() + half};
+}
+}  // namespace
+
+Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height) {
+  return widened(box, camera, height, 1.0);
+}
+
+Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height) {
+  return widened(box, camera, height, 0.5);
+}
+
+void Renderer::setDepthBound(GLint location, const Box3d& box) {
+  float k[9] = {0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound),
+                0, 0, float(kNoDepthBound)};
+  if (box.valid()) {
+    EntryDepthPlanes p = entryDepthPlanes(depthBoundBox(box, camera_, height_), camera_);
+    for (int i = 0; i < 9; ++i) k[i] = float(p.k[size_t(i / 3)][size_t(i % 3)]);
+  }
+  gl_.Uniform3fv(location, 3, k);
 }
 
 void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
@@ -349,7 +409,8 @@ void Renderer::beginIdFrame(const Camera& camera, const Rect& region) {
   gl_.UniformMatrix4fv(u_id_proj_, 1, GL_FALSE, proj);
 }
 
-void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id) {
+void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                      uint32_t id) {
   float mvf[16];
   toFloat(cameraRelative(object_to_world), mvf);
   uint32_t v = id + 1;
@@ -357,6 +418,7 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_
                     float((v >> 16) & 0xFF) / 255.f, 1.f};
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
   gl_.Uniform4fv(u_id_color_, 1, color);
+  setDepthBound(u_id_bound_, bounds);
   gl_.BindVertexArray(mesh.vao);
   for (const SubMesh& s : mesh.submeshes)
     gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
@@ -364,7 +426,8 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_
   gl_.BindVertexArray(0);
 }
 
-void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool lod) {
+void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                         bool lod) {
   // The position-only program: its vertex transform is the same expression as
   // the shading program's, so depth matches the render pass, while the
   // fragment work (lighting, derivatives) is skipped.
@@ -374,6 +437,7 @@ void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool
   toFloat(cameraRelative(object_to_world), mvf);
   gl_.UniformMatrix4fv(u_id_proj_, 1, GL_FALSE, proj);
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
+  setDepthBound(u_id_bound_, bounds);
   gl_.BindVertexArray(mesh.vao);
   if (lod && mesh.lod_count > 0) {
     gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
@@ -386,7 +450,7 @@ void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool
   gl_.BindVertexArray(0);
 }
 
-void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,
+void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
                     const std::vector<GLuint>& textures) {
   Mat4d mv = cameraRelative(object_to_world);
   Mat4d inv;
@@ -397,6 +461,7 @@ void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world,
       for (int r = 0; r < 3; ++r) nrm[c * 3 + r] = float(inv.at(c, r));
   gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
   gl_.UniformMatrix3fv(u_nrm_, 1, GL_FALSE, nrm);
+  setDepthBound(u_bound_, bounds);
   gl_.BindVertexArray(mesh.vao);
   for (const SubMesh& s : mesh.submeshes) {
     bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();

@@ -45,6 +45,11 @@ uint64_t gpuBytes(const TextureData& t);
 // `height` pixels high (llvmpipe snaps to 1/256 pixel; a sub-pixel object
 // widened by 0.1% alone could cover a pixel centre its box missed).
 Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height);
+// The box whose entry depth bounds every fragment of an object (the shaders'
+// boundedDepth): `box` widened by half of queryBoxBounds' margin, so that it
+// still encloses the object after rounding, while the query box's rasterised
+// front faces stay in front of it by the other half.
+Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height);
 
 struct Rgb {
   float r = 0.2f, g = 0.22f, b = 0.26f;
@@ -87,15 +92,20 @@ class Renderer {
   // 0 is background) with the same vertex transform and depth test as draw(),
   // so that the id buffer says which object owns each pixel of the frame.
   void beginIdFrame(const Camera& camera, const Rect& region);
-  void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, uint32_t id);
+  void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+              uint32_t id);
 
   // Draws an object into depth only (beginDepthFrame passes), in full or,
   // with `lod`, with its occluder level of detail where it has one (an
   // approximation).
-  void drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, bool lod);
+  void drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds, bool lod);
 
   // Draws one object; `textures` maps texture file indices to GL names.
-  void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const std::vector<GLuint>& textures);
+  // `bounds`: the object's world box (ObjectBounds::box); no fragment is drawn
+  // in front of it (depthBoundBox). An invalid box sets no bound. The same
+  // box must be passed by every draw of the object for depth to agree.
+  void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+            const std::vector<GLuint>& textures);
   // Reads `region` as RGBA8, bottom row first (GL order).
   void readPixels(const Rect& region, std::vector<uint8_t>* rgba);
   void finish();
@@ -111,7 +121,9 @@ class Renderer {
   GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
   Camera camera_;
   Mat4d view_rotation_;
+  GLint u_bound_ = -1, u_id_bound_ = -1;
   Mat4d cameraRelative(const Mat4d& object_to_world) const;
+  void setDepthBound(GLint location, const Box3d& box);
 };
 
 }  // namespace dmmr

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """CTest bench_small: runs `dmmr-bench paper --scale small` and checks the
 report's structure (files, JSON keys, Markdown tables, non-empty PNGs) and
-its accuracy columns (conservative runs: 0 differing pixels). Not timings.
+its accuracy columns (conservative runs: 0 differing pixels), and that the
+OpenSceneGraph baseline (osg-occlusion) ran beside the reference with the
+ratios to it in the report. Not timings.
 
 usage: check_report.py SOURCE_DIR BIN_DIR OUT_DIR"""
 import json
@@ -46,6 +48,15 @@ for sc in s.get("scenes", []):
     name = sc["scene"]
     ref = sc["reference"]
     check(ref["frames"] > 1 and ref["frame_ms_mean"] > 0, f"{name}: reference frames and frame time")
+    osg = sc.get("osg")
+    check(osg is not None, f"{name}: osg-occlusion run")
+    if osg:
+        check(osg["frames"] == ref["frames"], f"{name}: osg-occlusion has as many frames as the reference")
+        check(osg["frame_ms_mean"] > 0 and osg["triangles_mean"] > 0, f"{name}: osg-occlusion frame time, triangles")
+        check(osg.get("speedup_vs_reference") is not None, f"{name}: osg-occlusion vs reference")
+        check((rep / "csv" / f"{name}-osg-occlusion.csv").is_file(), f"csv/{name}-osg-occlusion.csv")
+        frames = sorted((out / "runs" / name / "osg-occlusion").glob("frame_*.png"))
+        check(len(frames) == ref["frames"], f"{name}: osg-occlusion wrote every frame ({len(frames)})")
     for label in labels:
         r = sc["runs"].get(label)
         check(r is not None, f"{name}: run {label}")
@@ -53,7 +64,7 @@ for sc in s.get("scenes", []):
             continue
         for k in ("frame_ms_mean", "fps", "derived_frame_ms_mean", "speedup_vs_reference",
                   "derived_speedup_vs_reference", "server", "per_client", "triangles_drawn_mean", "gpu_hit_rate",
-                  "bytes_sent_mean", "accuracy"):
+                  "bytes_sent_mean", "accuracy", "speedup_vs_osg", "derived_speedup_vs_osg"):
             check(k in r, f"{name}/{label}: key {k}")
         check(len(r["per_client"]) == r["clients"], f"{name}/{label}: one entry per client")
         for c in r["per_client"]:
@@ -90,6 +101,9 @@ check(len(tables) >= 5, f"report.md has at least 5 Markdown tables ({len(tables)
 for n in (1, 2, 4):
     check(f"#### dmmr with {n} client" in md, f"report.md has the {n}-client stage table")
 check("derived" in md and "FAIL" not in md, "report.md labels derived times and has no accuracy FAIL")
+check("osg-occlusion (osgViewer + OcclusionQueryNode)" in md and "vs osg-occlusion" in md,
+      "report.md has the osg-occlusion baseline and the ratios to it")
+check("osg" in s and s["osg"].get("tool") == "dmmr-osgviewer", "summary.json describes the OSG baseline")
 
 print(f"bench_small: {len(failures)} failed checks; dmmr-bench wall {s.get('wall_s', 0):.1f} s")
 sys.exit(1 if failures else 0)

@@ -43,6 +43,14 @@ GeometryData quad(double x0, double x1, double y0, double y1, double z, float re
   return g;
 }
 
+// The box of a mesh's positions (its bounds when drawn untransformed).
+Box3d positionBox(const GeometryData& g) {
+  Box3d b;
+  for (size_t i = 0; i + 2 < g.positions.size(); i += 3)
+    b.expand(Vec3d{g.positions[i], g.positions[i + 1], g.positions[i + 2]});
+  return b;
+}
+
 // Appends `b` to `a` as more triangles of the same submesh.
 GeometryData join(GeometryData a, const GeometryData& b) {
   uint32_t base = uint32_t(a.vertexCount());
@@ -77,7 +85,7 @@ class OcclusionQuery : public testing::Test {
     r.beginDepthFrame(camera_, region);
     for (const GeometryData& g : occluders) {
       meshes_.push_back(r.upload(g));
-      r.draw(meshes_.back(), Mat4d::identity(), {});
+      r.draw(meshes_.back(), Mat4d::identity(), positionBox(g), {});
     }
     // A fresh query object each time: a query's target is fixed by its first use.
     const GlApi& gl = ctx_->gl();
@@ -99,7 +107,7 @@ class OcclusionQuery : public testing::Test {
     r.beginFrame(camera_, {0, 0, kSize, kSize});
     for (const GeometryData& g : objects) {
       meshes_.push_back(r.upload(g));
-      r.draw(meshes_.back(), Mat4d::identity(), {});
+      r.draw(meshes_.back(), Mat4d::identity(), positionBox(g), {});
     }
     std::vector<uint8_t> px;
     r.readPixels({0, 0, kSize, kSize}, &px);

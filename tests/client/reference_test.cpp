@@ -70,7 +70,7 @@ Image render(GlContext& ctx, const Scene& scene, const ControlPoint& cp, int w, 
   Camera cam = cameraAt(cp, w, h, 45, defaultNear(scene));
   for (const Rect& reg : regions) {
     r.beginFrame(cam, reg);
-    for (const ObjectBounds& o : scene.objects) r.draw(meshes[o.geometry], o.transform, {});
+    for (const ObjectBounds& o : scene.objects) r.draw(meshes[o.geometry], o.transform, o.box, {});
   }
   std::vector<uint8_t> px;
   r.readPixels({0, 0, w, h}, &px);
