@@ -70,7 +70,7 @@ def main(argv=None):
     scenes = runner.scenes()
     confs = runner.configurations()
     print(f"dmmr-bench: suite {suite_path.stem}, scale {a.scale}: {len(scenes)} scenes x "
-          f"(reference + {len(confs)} dmmr-render runs), {cfg.get('width')}x{cfg.get('height')}, "
+          f"(reference + osg-occlusion + {len(confs)} dmmr-render runs), {cfg.get('width')}x{cfg.get('height')}, "
           f"tools {bin_dir}, output {out} (log: {out / 'bench.log'})", flush=True)
     analysis.LINK_GBPS = float(runner.run_cfg.get("link_gbps", 1.0))
     t0 = time.monotonic()
@@ -94,6 +94,9 @@ def main(argv=None):
         "lp_num_threads": runner.run_cfg.get("lp_num_threads"), "wall_s": wall,
         "configurations": [{"label": l, "clients": n, "options": x} for l, n, x in confs],
         "run_wall_s": runner.timings,
+        "osg": {"tool": "dmmr-osgviewer", "label": "osg-occlusion", "backend": "osmesa",
+                "occlusion": "on", "min_vertices": 5000, "visibility_threshold": 0, "query_frame_count": 1,
+                **runner.osg},
         "link_gbps": analysis.LINK_GBPS,
         "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (prepare+retrieve+load+render+"
                               "readback+compress ms + bytes_sent at link_gbps); mean over frames 1..",

@@ -7,6 +7,13 @@ import time
 from pathlib import Path
 
 
+OSG_TOOL = "dmmr-osgviewer"
+OSG_LABEL = "osg-occlusion"  # the OpenSceneGraph baseline's run, one per scene
+# dmmr-osgviewer's settings, from the suite's [osg] table (the tool's defaults otherwise)
+OSG_KEYS = {"occlusion": "--occlusion", "min_vertices": "--min-vertices",
+            "visibility_threshold": "--visibility-threshold", "query_frame_count": "--query-frame-count"}
+
+
 class Progress:
     def __init__(self, total):
         self.total, self.done, self.start = total, 0, time.monotonic()
@@ -38,7 +45,8 @@ class Runner:
         self.cfg = suite["scales"][scale]
         self.run_cfg = suite.get("run", {})
         self.log = self.out / "bench.log"
-        for tool in ("dmmr-scenegen", "dmmr-preprocess", "dmmr-reference", "dmmr-render", "dmmr-compare"):
+        for tool in ("dmmr-scenegen", "dmmr-preprocess", "dmmr-reference", "dmmr-render", "dmmr-compare",
+                     OSG_TOOL):
             if not (self.bin / tool).exists():
                 sys.exit(f"dmmr-bench: {self.bin / tool} not found (build it, or pass --bin / set DMMR_BIN)")
         self.env = dict(os.environ)
@@ -51,6 +59,7 @@ class Runner:
         if lp:
             self.mpi += ["-x", "LP_NUM_THREADS"]
         self.timings = {}  # label -> wall seconds
+        self.osg = self.osg_settings()  # checked before any run
 
     # --- plan -------------------------------------------------------------
     def configurations(self):
@@ -69,7 +78,8 @@ class Runner:
         return self.cfg["scenes"]
 
     def total_steps(self):
-        per_scene = 2 + 1 + 2 * len(self.configurations())  # generate, preprocess, reference, (render, compare)*
+        # generate, preprocess, reference, OSG baseline, (render, compare)*
+        per_scene = 2 + 1 + 1 + 2 * len(self.configurations())
         return per_scene * len(self.scenes())
 
     # --- scenes -----------------------------------------------------------
@@ -102,13 +112,33 @@ class Runner:
                 shutil.rmtree(scene_dir)
             dt = run_cmd([self.bin / "dmmr-preprocess", osgb, "-o", scene_dir, "--no-progress"], self.log)
             progress.step(f"{name}: preprocessed in {dt:.1f} s")
-        return scene_dir, path
+        return scene_dir, path, osgb
 
     # --- runs -------------------------------------------------------------
     def common_opts(self, scene_dir, path, out_dir, stats):
         return ["--scene", scene_dir, "--walkthrough", path, "--out", out_dir, "--stats", stats,
                 "--width", self.cfg.get("width", 512), "--height", self.cfg.get("height", 512),
                 "--backend", self.backend, "--no-progress"]
+
+    def osg_settings(self):
+        """The [osg] table, checked: its keys are dmmr-osgviewer's options."""
+        osg = dict(self.suite.get("osg", {}))
+        unknown = sorted(set(osg) - set(OSG_KEYS))
+        if unknown:
+            sys.exit(f"dmmr-bench: unknown key(s) in [osg]: {', '.join(unknown)} (known: {', '.join(OSG_KEYS)})")
+        return osg
+
+    def osg_opts(self, osgb, path, out_dir, stats):
+        """dmmr-osgviewer on the original model, same walkthrough and image size as the other runs.
+        It renders through OSMesa whatever --backend says (OSG's fixed-function path needs a
+        compatibility context; the tool has no EGL backend)."""
+        opts = ["--model", osgb, "--walkthrough", path, "--out", out_dir, "--stats", stats,
+                "--width", self.cfg.get("width", 512), "--height", self.cfg.get("height", 512), "--no-progress"]
+        for k, v in self.osg.items():
+            if isinstance(v, bool):
+                v = "on" if v else "off"
+            opts += [OSG_KEYS[k], v]
+        return opts
 
     def _fresh(self, *paths):
         for p in paths:
@@ -120,7 +150,7 @@ class Runner:
 
     def run_scene(self, sc, progress):
         name = sc["name"]
-        scene_dir, path = self.make_scene(sc, progress)
+        scene_dir, path, osgb = self.make_scene(sc, progress)
         rd = self.out / "runs" / name
         rd.mkdir(parents=True, exist_ok=True)
         ref_dir, ref_csv = rd / "reference", rd / "reference.csv"
@@ -132,6 +162,14 @@ class Runner:
                          self.log, env=self.env)
             self.timings[f"{name}/reference"] = dt
             progress.step(f"{name}: dmmr-reference (brute force) in {dt:.1f} s")
+        osg_dir, osg_csv = rd / OSG_LABEL, rd / f"{OSG_LABEL}.csv"
+        if self.resume and osg_csv.exists():
+            progress.step(f"{name}: {OSG_TOOL} reused")
+        else:
+            self._fresh(osg_dir, osg_csv)
+            dt = run_cmd([self.bin / OSG_TOOL, *self.osg_opts(osgb, path, osg_dir, osg_csv)], self.log, env=self.env)
+            self.timings[f"{name}/{OSG_LABEL}"] = dt
+            progress.step(f"{name}: {OSG_TOOL} (osgViewer + OcclusionQueryNode, original model) in {dt:.1f} s")
         for label, n, extra in self.configurations():
             out_dir, csv = rd / label, rd / f"{label}.csv"
             cmp_csv = rd / f"{label}.cmp.csv"
@@ -152,4 +190,5 @@ class Runner:
             run_cmd([self.bin / "dmmr-compare", ref_dir, out_dir, "--csv", cmp_csv,
                      "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
             progress.step(f"{name}: {label} compared with the reference")
-        return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd)}
+        return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd),
+                "osg_csv": str(osg_csv)}
