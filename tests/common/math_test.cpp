@@ -576,5 +576,103 @@ TEST(CameraTest, CameraAtUsesImageAspect) {
   EXPECT_EQ(c.near, 0.25);
 }
 
+
+// The ray through (ndc_x, ndc_y) in world space: the eye and a direction whose
+// eye-space z is -1, so a point at parameter t is at eye distance t.
+Vec3d rayDirection(const Camera& c, double ndc_x, double ndc_y) {
+  double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+  return rotate(c.rotation, Vec3d{ndc_x * tx, ndc_y * ty, -1});
+}
+
+// Slab test, written independently of entryDepthPlanes: the eye distance at
+// which the ray enters the box, or -1 when it never does.
+double rayEntry(const Box3d& b, Vec3d o, Vec3d d) {
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 3; ++i) {
+    if (d[i] == 0) {
+      if (o[i] < b.lo[i] || o[i] > b.hi[i]) return -1;
+      continue;
+    }
+    double a = (b.lo[i] - o[i]) / d[i], e = (b.hi[i] - o[i]) / d[i];
+    t0 = std::max(t0, std::min(a, e));
+    t1 = std::min(t1, std::max(a, e));
+  }
+  return t0 <= t1 ? t0 : -1;
+}
+
+TEST(EntryDepthTest, MatchesRaySlabEntryOnRandomCamerasAndBoxes) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> pos(-50, 50), size(0.01, 20), ndc(-1, 1), fov(10, 120);
+  int hits = 0, misses = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    Camera c{{pos(rng), pos(rng), pos(rng)}, randomUnitQuat(rng), fov(rng), 0.5 + ndc(rng) * 0.4 + 1,
+             0.01};
+    Vec3d lo{pos(rng), pos(rng), pos(rng)};
+    Box3d b{lo, lo + Vec3d{size(rng), size(rng), size(rng)}};
+    bool inside = b.lo.x <= c.eye.x && c.eye.x <= b.hi.x && b.lo.y <= c.eye.y &&
+                  c.eye.y <= b.hi.y && b.lo.z <= c.eye.z && c.eye.z <= b.hi.z;
+    if (inside) continue;
+    EntryDepthPlanes p = entryDepthPlanes(b, c);
+    // Half the rays aim at a point of the box (when it is in front), so that
+    // hits and misses are both common.
+    double x = ndc(rng), y = ndc(rng);
+    Vec3d aim = viewMatrix(c).transformPoint(b.center() + Vec3d{ndc(rng), ndc(rng), ndc(rng)} *
+                                                              (length(b.extent()) * 0.5));
+    if (trial % 2 == 0 && aim.z < 0) {
+      double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+      x = aim.x / -aim.z / tx;
+      y = aim.y / -aim.z / ty;
+    }
+    double t = rayEntry(b, c.eye, rayDirection(c, x, y));
+    double d = entryDepth(p, x, y);
+    if (t > 0) {
+      ++hits;
+      EXPECT_NEAR(d, c.near / t, 1e-9 * c.near / t) << "trial " << trial << " " << c;
+    } else {
+      ++misses;
+      // A miss: either some slab is never entered (bound <= 0, the fragment
+      // dies) or the slabs' entries do not overlap; either way no point of
+      // the box lies on the ray, so any bound is sound.
+      EXPECT_TRUE(std::isfinite(d));
+    }
+  }
+  EXPECT_GT(hits, 300);
+  EXPECT_GT(misses, 300);
+}
+
+TEST(EntryDepthTest, BoundsEveryPointOfTheBoxOnTheRay) {
+  // What the shaders' clamp rests on: a point of the box seen through a
+  // pixel is never in front of (deeper-valued than) the entry depth there.
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> pos(-30, 30), size(0.1, 10), unit(0, 1);
+  for (int trial = 0; trial < 2000; ++trial) {
+    Camera c{{pos(rng), pos(rng), pos(rng)}, randomUnitQuat(rng), 60, 1.5, 0.05};
+    Vec3d lo{pos(rng), pos(rng), pos(rng)};
+    Box3d b{lo, lo + Vec3d{size(rng), size(rng), size(rng)}};
+    Vec3d q{b.lo.x + unit(rng) * (b.hi.x - b.lo.x), b.lo.y + unit(rng) * (b.hi.y - b.lo.y),
+            b.lo.z + unit(rng) * (b.hi.z - b.lo.z)};
+    Vec3d e = viewMatrix(c).transformPoint(q);
+    if (-e.z <= c.near) continue;  // behind the camera or before the near plane
+    double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+    double x = e.x / -e.z / tx, y = e.y / -e.z / ty;
+    EXPECT_LE(c.near / -e.z, entryDepth(entryDepthPlanes(b, c), x, y) * (1 + 1e-12))
+        << "trial " << trial;
+  }
+}
+
+TEST(EntryDepthTest, EyeInsideASlabSetsNoBoundForThatAxis) {
+  Camera c{{0, 0, 0}, Quatd{}, 90, 1, 1};  // looking down -Z
+  Box3d b{{-1, -1, -10}, {1, 1, -5}};       // the eye is inside the x and y slabs
+  EntryDepthPlanes p = entryDepthPlanes(b, c);
+  EXPECT_EQ(p.k[0], (std::array<double, 3>{0, 0, kNoDepthBound}));
+  EXPECT_EQ(p.k[1], (std::array<double, 3>{0, 0, kNoDepthBound}));
+  // Entered at z = -5 everywhere: depth near / 5.
+  EXPECT_DOUBLE_EQ(entryDepth(p, 0, 0), 0.2);
+  EXPECT_DOUBLE_EQ(entryDepth(p, 0.9, -0.7), 0.2);
+  // Inside the box: no bound at all.
+  EXPECT_EQ(entryDepth(entryDepthPlanes(Box3d{{-1, -1, -1}, {1, 1, 1}}, c), 0.3, 0.3),
+            kNoDepthBound);
+}
+
 }  // namespace
 }  // namespace dmmr
