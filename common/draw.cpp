@@ -1,6 +1,7 @@
 #include "draw.h"
 
 #include <cmath>
+#include <initializer_list>
 #include <string>
 
 #include "error.h"
@@ -31,27 +32,33 @@ void main() {
 }
 )";
 
-// Shared by the fragment shaders that draw geometry (shading, depth and id):
-// the fragment's depth, clamped to where the ray through its pixel centre
-// enters its object's bound box (camera.h, entryDepthPlanes; the planes come
-// from Renderer::setDepthBound). Rasterisers interpolate depth from plane
-// equations that, for a sliver triangle seen almost edge-on, can put a
-// covered pixel far nearer than any of the triangle's vertices (seen on
-// llvmpipe: 14 m in front of its object's box at 200 m). Clamped, no fragment
-// of an object lies in front of its box, which the occlusion queries'
-// exactness rests on; for every other fragment the clamp changes nothing, as
-// the bound box is wider than the object's own. Depth only ever decreases
-// (reversed-Z), hence depth_less; a ray that misses the box gives depth 0,
-// which never passes GL_GREATER against the cleared 0.
-const char* kBoundedDepth = R"(#version 450 core
-layout(depth_less) out float gl_FragDepth;
+// Fragment depth from the entry-depth planes of a box (camera.h,
+// entryDepthPlanes, set by Renderer::setDepthBound): where the ray through the
+// fragment's pixel centre enters the box. Shared by every fragment shader.
+const char* kDepthPlanes = R"(#version 450 core
 uniform vec3 u_bound[3];
 uniform vec2 u_ndc_scale;
-float boundedDepth() {
+float entryDepth() {
   vec3 p = vec3(gl_FragCoord.xy * u_ndc_scale - 1.0, 1.0);
-  precise float b = min(min(dot(u_bound[0], p), dot(u_bound[1], p)), dot(u_bound[2], p));
-  return max(min(gl_FragCoord.z, b), 0.0);
+  precise float d = min(min(dot(u_bound[0], p), dot(u_bound[1], p)), dot(u_bound[2], p));
+  return d;
 }
+)";
+
+// For the shaders that draw geometry (shading, depth and id): each fragment's
+// depth clamped to its object's bound box's entry depth. Rasterisers
+// interpolate depth from plane equations that, for a sliver triangle seen
+// almost edge-on, can put a covered pixel far nearer than any of the
+// triangle's vertices (seen on llvmpipe: 14 m in front of its object's box
+// at 200 m). Clamped, no fragment of an object lies in front of its box,
+// which the occlusion queries' exactness rests on; for every other fragment
+// the clamp changes nothing, as the bound box is wider than the object's.
+// Depth only ever decreases (reversed-Z), hence depth_less; a ray that
+// misses the box gives depth 0, which never passes GL_GREATER against the
+// cleared 0.
+const char* kBoundedDepth = R"(
+layout(depth_less) out float gl_FragDepth;
+float boundedDepth() { return max(min(gl_FragCoord.z, entryDepth()), 0.0); }
 )";
 
 // Two-sided headlight shading. Without normals, the facet normal comes from
@@ -96,19 +103,21 @@ void main() {
 }
 )";
 
-const char* kBoxFragmentShader = R"(#version 450 core
+// Query boxes take the same planes' depth instead of the interpolated one: a
+// box face seen edge-on is a sliver too, and its interpolated depth could
+// fall behind the box and fail a query the box should pass.
+const char* kBoxFragmentShader = R"(
 out vec4 o_color;
-void main() { o_color = vec4(1.0); }
+void main() {
+  o_color = vec4(1.0);
+  gl_FragDepth = clamp(entryDepth(), 0.0, 1.0);
+}
 )";
 
-// `prefix` (may be null) goes before `src`; the #version line is in the first.
-GLuint compile(const GlApi& gl, GLenum type, const char* src, const char* prefix = nullptr) {
+// `parts` are concatenated; the first holds the #version line.
+GLuint compile(const GlApi& gl, GLenum type, std::initializer_list<const char*> parts) {
   GLuint s = gl.CreateShader(type);
-  const char* parts[2] = {prefix, src};
-  if (prefix)
-    gl.ShaderSource(s, 2, parts, nullptr);
-  else
-    gl.ShaderSource(s, 1, &src, nullptr);
+  gl.ShaderSource(s, GLsizei(parts.size()), parts.begin(), nullptr);
   gl.CompileShader(s);
   GLint ok = 0;
   gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
@@ -121,9 +130,9 @@ GLuint compile(const GlApi& gl, GLenum type, const char* src, const char* prefix
   return s;
 }
 
-GLuint link(const GlApi& gl, const char* vsSrc, const char* fsSrc, const char* fsPrefix = nullptr) {
-  GLuint vs = compile(gl, GL_VERTEX_SHADER, vsSrc);
-  GLuint fs = compile(gl, GL_FRAGMENT_SHADER, fsSrc, fsPrefix);
+GLuint link(const GlApi& gl, const char* vsSrc, std::initializer_list<const char*> fsParts) {
+  GLuint vs = compile(gl, GL_VERTEX_SHADER, {vsSrc});
+  GLuint fs = compile(gl, GL_FRAGMENT_SHADER, fsParts);
   GLuint program = gl.CreateProgram();
   gl.AttachShader(program, vs);
   gl.AttachShader(program, fs);
@@ -166,12 +175,13 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw Error("the frame's framebuffer is incomplete");
 
-  program_ = link(gl_, kVertexShader, kFragmentShader, kBoundedDepth);
-  box_program_ = link(gl_, kBoxVertexShader, kBoxFragmentShader);
-  id_program_ = link(gl_, kBoxVertexShader, kIdFragmentShader, kBoundedDepth);
+  program_ = link(gl_, kVertexShader, {kDepthPlanes, kBoundedDepth, kFragmentShader});
+  box_program_ = link(gl_, kBoxVertexShader, {kDepthPlanes, kBoxFragmentShader});
+  id_program_ = link(gl_, kBoxVertexShader, {kDepthPlanes, kBoundedDepth, kIdFragmentShader});
   u_bound_ = gl_.GetUniformLocation(program_, "u_bound");
   u_id_bound_ = gl_.GetUniformLocation(id_program_, "u_bound");
-  for (GLuint p : {program_, id_program_}) {
+  u_box_bound_ = gl_.GetUniformLocation(box_program_, "u_bound");
+  for (GLuint p : {program_, id_program_, box_program_}) {
     gl_.UseProgram(p);
     gl_.Uniform2f(gl_.GetUniformLocation(p, "u_ndc_scale"), 2.f / float(width), 2.f / float(height));
   }
@@ -362,7 +372,7 @@ void Renderer::setDepthBound(GLint location, const Box3d& box) {
   float k[9] = {0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound),
                 0, 0, float(kNoDepthBound)};
   if (box.valid()) {
-    EntryDepthPlanes p = entryDepthPlanes(depthBoundBox(box, camera_, height_), camera_);
+    EntryDepthPlanes p = entryDepthPlanes(box, camera_);
     for (int i = 0; i < 9; ++i) k[i] = float(p.k[size_t(i / 3)][size_t(i % 3)]);
   }
   gl_.Uniform3fv(location, 3, k);
@@ -376,6 +386,7 @@ void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
   float mvf[16];
   toFloat(mv, mvf);
   gl_.UniformMatrix4fv(u_box_mv_, 1, GL_FALSE, mvf);
+  setDepthBound(u_box_bound_, q);
   // An eye inside the box sees only back faces: draw them all then.
   bool inside = std::abs(c.x) <= half.x && std::abs(c.y) <= half.y && std::abs(c.z) <= half.z;
   if (inside) gl_.Disable(GL_CULL_FACE);
@@ -418,7 +429,7 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const B
                     float((v >> 16) & 0xFF) / 255.f, 1.f};
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
   gl_.Uniform4fv(u_id_color_, 1, color);
-  setDepthBound(u_id_bound_, bounds);
+  setDepthBound(u_id_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
   for (const SubMesh& s : mesh.submeshes)
     gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
@@ -437,7 +448,7 @@ void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, cons
   toFloat(cameraRelative(object_to_world), mvf);
   gl_.UniformMatrix4fv(u_id_proj_, 1, GL_FALSE, proj);
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
-  setDepthBound(u_id_bound_, bounds);
+  setDepthBound(u_id_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
   if (lod && mesh.lod_count > 0) {
     gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
@@ -461,7 +472,7 @@ void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box
       for (int r = 0; r < 3; ++r) nrm[c * 3 + r] = float(inv.at(c, r));
   gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
   gl_.UniformMatrix3fv(u_nrm_, 1, GL_FALSE, nrm);
-  setDepthBound(u_bound_, bounds);
+  setDepthBound(u_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
   for (const SubMesh& s : mesh.submeshes) {
     bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();
