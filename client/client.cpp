@@ -111,6 +111,7 @@ class VisibilityStage {
       return out;
     }
     auto t0 = Clock::now();
+    startFrame(job.frame);
     static const std::vector<uint32_t> kNone;
     const auto& potential =
         opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
@@ -155,15 +156,28 @@ class VisibilityStage {
     gl.check("occlusion queries");
     out.stats.prepare_ms = msSince(t0) - retrieve;
     out.stats.retrieve_ms = retrieve;
-    for (uint32_t o : passed) marked_until_[o] = job.frame + 1 + opts_.keep_frames;
     std::sort(passed.begin(), passed.end());
+    passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
     out.visible = mergeSorted({taken, passed});
-    previous_ = out.visible;
+    visible_now_.insert(visible_now_.end(), out.visible.begin(), out.visible.end());
     out.stats.occluders = plan.occluders.size();
     out.stats.queried = issued;
     out.stats.visible = out.visible.size();
     out.job = std::move(job);
     return out;
+  }
+
+  // A frame can come as several jobs (tiles): what they found visible is the
+  // next frame's occluder set, and what passed a query is marked from the
+  // next frame on, so a frame's later tiles are not handed its earlier
+  // tiles' objects unqueried.
+  void startFrame(uint32_t frame) {
+    if (frame == frame_) return;
+    for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
+    previous_ = mergeSorted({visible_now_});
+    passed_now_.clear();
+    visible_now_.clear();
+    frame_ = frame;
   }
 
   void drawDepth(uint32_t object) {
@@ -241,6 +255,8 @@ class VisibilityStage {
   GlStage gl_;
   std::vector<uint32_t> previous_;      // last frame's visible list (ascending)
   std::vector<uint32_t> marked_until_;  // per object: first frame to query again
+  uint32_t frame_ = UINT32_MAX;         // the frame of the jobs being decided
+  std::vector<uint32_t> visible_now_, passed_now_;  // this frame's, over its jobs
   std::vector<GLuint> queries_;
 };
 
@@ -406,12 +422,15 @@ int runClient(Comm& comm, const ClientOptions& opts) {
     visible.close();
   };
   auto renderLoop = [&](RenderStage* stage) {
+    std::vector<SubFrame> batch;  // held until a job says flush (static tiles)
     while (auto v = visible.pop()) {
       if (!stage || failure.failed()) continue;
       try {
-        SubFrame sf = stage->run(*v);
+        batch.push_back(stage->run(*v));
+        if (!v->job.flush) continue;
         auto ts = Clock::now();
-        comm.send(0, Tag::SubFrame, encodeSubFrame(sf));
+        comm.send(0, Tag::SubFrame, encodeSubFrames(batch));
+        batch.clear();
         stage->sent(msSince(ts));
       } catch (const std::exception& e) {
         failure.fail(std::string("render stage: ") + e.what());
@@ -439,6 +458,10 @@ int runClient(Comm& comm, const ClientOptions& opts) {
     for (;;) {
       Message m = comm.recv(0);
       if (m.tag == Tag::Shutdown) break;
+      if (m.tag == Tag::Ping) {  // the server measures the link (--balance auto)
+        comm.send(0, Tag::Pong, m.bytes);
+        continue;
+      }
       if (m.tag != Tag::Job) continue;
       try {
         FrameJob job = decodeJob(m.bytes);

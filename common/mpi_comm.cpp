@@ -48,6 +48,10 @@ const char* tagName(Tag t) {
       return "Shutdown";
     case Tag::Bye:
       return "Bye";
+    case Tag::Ping:
+      return "Ping";
+    case Tag::Pong:
+      return "Pong";
   }
   return "Unknown";
 }

@@ -17,6 +17,8 @@ enum class Tag : int {
   Error = 4,     // client -> server: a stage failed (text)
   Shutdown = 5,  // server -> client: no more jobs
   Bye = 6,       // client -> server: acknowledged shutdown, nothing more follows
+  Ping = 7,      // server -> client: echo these bytes (link probe for --balance auto)
+  Pong = 8,      // client -> server: the echo
 };
 const char* tagName(Tag t);
 inline constexpr int kAnySource = -1;

@@ -1,6 +1,7 @@
 #include "protocol.h"
 
 #include "bytes.h"
+#include "error.h"
 
 namespace dmmr {
 
@@ -32,6 +33,7 @@ std::vector<uint8_t> encodeJob(const FrameJob& j) {
   putRect(w, j.region);
   w.u32(uint32_t(j.objects.size()));
   w.array(j.objects.data(), j.objects.size());
+  w.u8(j.flush ? 1 : 0);
   return std::move(w.bytes());
 }
 
@@ -48,12 +50,16 @@ FrameJob decodeJob(const std::vector<uint8_t>& bytes) {
   if (j.width <= 0 || j.height <= 0) r.fail("bad frame size");
   j.region = getRect(r);
   r.array(&j.objects, r.u32("object count"), "objects");
+  uint8_t flush = r.u8("flush");
+  if (flush > 1) r.fail("flush is neither 0 nor 1");
+  j.flush = flush == 1;
   r.finish();
   return j;
 }
 
-std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
-  ByteWriter w;
+namespace {
+
+void putSubFrame(ByteWriter& w, const SubFrame& s) {
   w.u32(s.frame);
   putRect(w, s.region);
   w.u8(uint8_t(s.codec));
@@ -70,11 +76,9 @@ std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
   w.array(s.data.data(), s.data.size());
   w.u32(uint32_t(s.drawn.size()));
   w.array(s.drawn.data(), s.drawn.size());
-  return std::move(w.bytes());
 }
 
-SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
-  ByteReader r(bytes.data(), bytes.size(), "SubFrame message");
+SubFrame getSubFrame(ByteReader& r) {
   SubFrame s;
   s.frame = r.u32("frame");
   s.region = getRect(r);
@@ -93,8 +97,58 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
     *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
   r.array(&s.drawn, r.u32("drawn count"), "drawn objects");
-  r.finish();
   return s;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encodeSubFrames(const std::vector<SubFrame>& subs) {
+  ByteWriter w;
+  w.u32(uint32_t(subs.size()));
+  for (const SubFrame& s : subs) putSubFrame(w, s);
+  return std::move(w.bytes());
+}
+
+std::vector<SubFrame> decodeSubFrames(const std::vector<uint8_t>& bytes) {
+  ByteReader r(bytes.data(), bytes.size(), "SubFrame message");
+  uint32_t n = r.u32("sub-frame count");
+  if (n == 0) r.fail("no sub-frames");
+  // Each sub-frame takes at least its fixed fields: a count beyond what the
+  // bytes can hold is malformed, not an allocation to attempt.
+  if (n > bytes.size() / 64) r.fail("more sub-frames than the message can hold");
+  std::vector<SubFrame> subs;
+  subs.reserve(n);
+  for (uint32_t i = 0; i < n; ++i) subs.push_back(getSubFrame(r));
+  r.finish();
+  return subs;
+}
+
+std::vector<uint8_t> encodeSubFrame(const SubFrame& s) {
+  return encodeSubFrames({s});
+}
+
+SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
+  std::vector<SubFrame> subs = decodeSubFrames(bytes);
+  if (subs.size() != 1)
+    throw Error("SubFrame message: " + std::to_string(subs.size()) + " sub-frames, expected 1");
+  return subs[0];
+}
+
+void accumulate(ClientStats& a, const ClientStats& b) {
+  for (auto [x, y] : {std::pair{&a.prepare_ms, b.prepare_ms}, {&a.retrieve_ms, b.retrieve_ms},
+                      {&a.pass_ms, b.pass_ms}, {&a.load_ms, b.load_ms}, {&a.render_ms, b.render_ms},
+                      {&a.readback_ms, b.readback_ms}, {&a.compress_ms, b.compress_ms},
+                      {&a.send_ms, b.send_ms}})
+    *x += y;
+  for (auto [x, y] :
+       {std::pair{&a.objects, b.objects}, {&a.occluders, b.occluders}, {&a.queried, b.queried},
+        {&a.visible, b.visible}, {&a.triangles, b.triangles}, {&a.bytes_raw, b.bytes_raw},
+        {&a.bytes_sent, b.bytes_sent}, {&a.gpu_hits, b.gpu_hits}, {&a.gpu_misses, b.gpu_misses},
+        {&a.ram_hits, b.ram_hits}, {&a.ram_misses, b.ram_misses}, {&a.disk_bytes, b.disk_bytes},
+        {&a.uncached, b.uncached}, {&a.skipped, b.skipped}})
+    *x += y;
+  a.gpu_resident = b.gpu_resident;
+  a.ram_resident = b.ram_resident;
 }
 
 std::vector<uint8_t> encodeText(const std::string& s) {

@@ -18,6 +18,10 @@ struct FrameJob {
   int width = 0, height = 0;      // the full frame
   Rect region;                    // this client's scissor rectangle
   std::vector<uint32_t> objects;  // ascending object indices to draw
+  // Send the sub-frames held so far now (with this job's). False on all but
+  // the last of a client's tiles in a frame under --balance tiles-static,
+  // whose clients return their tiles in one batch.
+  bool flush = true;
   friend bool operator==(const FrameJob&, const FrameJob&) = default;
 };
 
@@ -44,6 +48,10 @@ struct ClientStats {
   friend bool operator==(const ClientStats&, const ClientStats&) = default;
 };
 
+// Adds a tile's stats to a client's total for the frame: times and counts
+// add up; resident bytes are the latest.
+void accumulate(ClientStats& total, const ClientStats& tile);
+
 // The region's pixels as RGB8 rows, bottom row first, compressed with `codec`.
 struct SubFrame {
   uint32_t frame = 0;
@@ -60,6 +68,9 @@ std::vector<uint8_t> encodeJob(const FrameJob& j);
 FrameJob decodeJob(const std::vector<uint8_t>& bytes);
 std::vector<uint8_t> encodeSubFrame(const SubFrame& s);
 SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes);
+// A SubFrame message: one or more sub-frames (a client's batch of tiles).
+std::vector<uint8_t> encodeSubFrames(const std::vector<SubFrame>& s);
+std::vector<SubFrame> decodeSubFrames(const std::vector<uint8_t>& bytes);
 std::vector<uint8_t> encodeText(const std::string& s);
 std::string decodeText(const std::vector<uint8_t>& bytes);
 

@@ -59,6 +59,18 @@ int main(int argc, char** argv) {
                  "seconds a client may stay silent while it owes a sub-frame before the run "
                  "is aborted naming it")
       ->check(CLI::PositiveNumber);
+  std::string balance = "frustum", tile = "128x128", tileOrder = "rows";
+  app.add_option("--balance", balance,
+                 "frame distribution: frustum (load-balanced division), tiles-static, "
+                 "tiles-dynamic or auto (chosen from the measured link)")
+      ->check(CLI::IsMember({"frustum", "tiles-static", "tiles-dynamic", "auto"}));
+  app.add_option("--tile", tile, "tile size WxH for the tile strategies (e.g. 128x128)");
+  app.add_option("--tile-order", tileOrder,
+                 "tiles-static dealing: rows (round-robin) or interleaved (diagonals)")
+      ->check(CLI::IsMember({"rows", "interleaved"}));
+  app.add_option("--tiles-in-flight", s.tile_window,
+                 "tiles-dynamic: tiles given to a client before it returns one")
+      ->check(CLI::Range(1, 4));
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -84,6 +96,14 @@ int main(int argc, char** argv) {
     return 1;
   }
   c.codec = dmmr::parseCodec(codec);
+  dmmr::parseBalance(balance, &s.balance);  // checked by CLI11 above
+  s.tile_order = tileOrder == "rows" ? dmmr::TileOrder::Rows : dmmr::TileOrder::Interleaved;
+  if (!dmmr::parseTileSize(tile, &s.tile_w, &s.tile_h)) {
+    if (!quiet)
+      std::fprintf(stderr, "dmmr-render: --tile %s: expected WxH with W, H from 1 to 16384\n",
+                   tile.c_str());
+    return 1;
+  }
 
   int status = 0;
   try {

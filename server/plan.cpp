@@ -1,5 +1,7 @@
 #include "plan.h"
 
+#include "tiles.h"
+
 #include <algorithm>
 #include <chrono>
 #include <thread>
@@ -63,23 +65,52 @@ FramePlan planFrame(const Scene& scene, const Camera& camera, int width, int hei
   return FramePlanner(scene).plan(camera, width, height, clients);
 }
 
+std::vector<uint32_t> FramePlanner::cull(const Camera& camera, uint64_t* objects,
+                                         uint64_t* triangles) const {
+  std::vector<uint32_t> visible;
+  CullStats cs;
+  cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(camera), &visible, &cs);
+  *objects = cs.objects;
+  *triangles = cs.triangles;
+  return visible;
+}
+
+namespace {
+double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+}  // namespace
+
 FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients) const {
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
   auto t0 = Clock::now();
-  std::vector<uint32_t> visible;
-  CullStats cs;
-  cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(camera), &visible, &cs);
-  plan.objects_in_frustum = cs.objects;
-  plan.triangles_in_frustum = cs.triangles;
+  std::vector<uint32_t> visible = cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
   auto t1 = Clock::now();
   std::vector<Footprint> items = footprints(visible, camera, width, height);
   auto tp = Clock::now();
   plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients);
   auto t2 = Clock::now();
-  plan.project_ms = std::chrono::duration<double, std::milli>(tp - t1).count();
-  plan.cull_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  plan.divide_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  plan.project_ms = msBetween(t1, tp);
+  plan.cull_ms = msBetween(t0, t1);
+  plan.divide_ms = msBetween(t1, t2);
+  return plan;
+}
+
+TilePlan FramePlanner::planTiles(const Camera& camera, int width, int height, int tile_w,
+                                 int tile_h) const {
+  using Clock = std::chrono::steady_clock;
+  TilePlan plan;
+  auto t0 = Clock::now();
+  std::vector<uint32_t> visible = cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
+  auto t1 = Clock::now();
+  Rect frame{0, 0, width, height};
+  plan.tiles = makeTiles(frame, tile_w, tile_h);
+  plan.columns = (width + tile_w - 1) / tile_w;
+  plan.objects = objectsPerTile(footprints(visible, camera, width, height), frame, tile_w, tile_h);
+  auto t2 = Clock::now();
+  plan.cull_ms = msBetween(t0, t1);
+  plan.divide_ms = msBetween(t1, t2);
   return plan;
 }
 

@@ -21,6 +21,18 @@ struct FramePlan {
   double project_ms = 0;  // the footprints alone (part of divide_ms)
 };
 
+// A frame as tiles (--balance tiles-*): the tiles in makeTiles order and, per
+// tile, the objects whose footprint overlaps it.
+struct TilePlan {
+  std::vector<Rect> tiles;
+  std::vector<std::vector<uint32_t>> objects;
+  int columns = 0;  // of the tile grid
+  uint64_t objects_in_frustum = 0;
+  uint64_t triangles_in_frustum = 0;
+  double cull_ms = 0;
+  double divide_ms = 0;  // footprints and the per-tile lists
+};
+
 // Plans frames of one scene. Keeps a compact copy of what projection needs
 // (each object's tight box and weight, 56 bytes instead of the whole bounds
 // record), because projecting 10^5 objects a frame is bound by memory traffic.
@@ -28,6 +40,7 @@ class FramePlanner {
  public:
   explicit FramePlanner(const Scene& scene);
   FramePlan plan(const Camera& camera, int width, int height, int clients) const;
+  TilePlan planTiles(const Camera& camera, int width, int height, int tile_w, int tile_h) const;
 
   // Division weights from what the clients drew: an object drawn in one of
   // the last kSeenFrames frames weighs its triangles; one not drawn lately
@@ -51,6 +64,8 @@ class FramePlanner {
     uint64_t weight;
   };
   uint64_t weightOf(uint32_t object) const;
+  // Frustum culling: the objects in view, ascending; fills the counts.
+  std::vector<uint32_t> cull(const Camera& camera, uint64_t* objects, uint64_t* triangles) const;
   const Scene& scene_;
   std::vector<Projected> boxes_;
   // Per object: 1 + the last frame a client drew it (0: never). Relaxed

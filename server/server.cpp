@@ -1,9 +1,12 @@
 #include "server.h"
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -34,8 +37,9 @@ struct FrameRecord {
   uint64_t objects = 0, triangles = 0;
   std::vector<uint64_t> region_objects;  // as planned, per client
   Image image;                           // assembled RGBA, top row first
-  std::vector<ClientStats> clients;
-  std::vector<uint8_t> from;  // per client: its sub-frame arrived
+  std::vector<ClientStats> clients;  // per client, summed over its sub-frames
+  std::vector<int> owed;             // per client: sub-frames given and not yet back
+  int expected = 0;                  // sub-frames that make up the frame
   int received = 0;
 };
 
@@ -71,13 +75,25 @@ class Assembler {
   }
 
   // Planning thread: registers a frame before its jobs go out.
-  void begin(uint32_t frame, FrameRecord rec) {
+  // `owed`: per client, the sub-frames it is given now (dynamic tiles add
+  // theirs with owe() as they go out); `expected`: all of the frame's.
+  void begin(uint32_t frame, FrameRecord rec, std::vector<int> owed, int expected) {
     rec.image = Image::blank(opts_.view.width, opts_.view.height);
     rec.clients.resize(size_t(clients_));
-    rec.from.assign(size_t(clients_), 0);
+    rec.owed = std::move(owed);
+    rec.expected = expected;
     std::lock_guard<std::mutex> lock(mu_);
     pending_[frame] = std::move(rec);
   }
+
+  // Dispatcher: `client` (1-based) was just given one more of `frame`'s tiles.
+  void owe(uint32_t frame, int client) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = pending_.find(frame); it != pending_.end()) ++it->second.owed[size_t(client - 1)];
+  }
+
+  // Called (on the assembler thread) after each sub-frame from `client`.
+  void onSubFrame(std::function<void(int client)> f) { on_sub_frame_ = std::move(f); }
 
   // Planning thread: blocks until fewer than `in_flight` frames are
   // outstanding; false when the run failed.
@@ -100,7 +116,10 @@ class Assembler {
         if (m.tag != Tag::SubFrame)
           throw Error(std::string("unexpected ") + tagName(m.tag) + " message from rank " +
                       std::to_string(m.source));
-        accept(m.source, decodeSubFrame(m.bytes));
+        for (const SubFrame& sf : decodeSubFrames(m.bytes)) {
+          accept(m.source, sf);
+          if (on_sub_frame_) on_sub_frame_(m.source);
+        }
       }
     } catch (const std::exception& e) {
       fail(std::string("server: ") + e.what());
@@ -119,9 +138,10 @@ class Assembler {
         frame = pending_.begin()->first;
         const FrameRecord& rec = pending_.begin()->second;
         for (int k = 1; k <= clients_; ++k)
-          if (!rec.from[size_t(k - 1)])
+          if (int n = rec.owed[size_t(k - 1)]; n > 0)
             who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(k) +
-                   " (rank " + std::to_string(k) + ")";
+                   " (rank " + std::to_string(k) + ", " + std::to_string(n) + " sub-frame" +
+                   (n > 1 ? "s" : "") + ")";
       }
     }
     std::fprintf(stderr,
@@ -159,6 +179,9 @@ class Assembler {
                     ", which is not in flight");
       rec = &it->second;
     }
+    if (rank < 1 || rank > clients_ || rec->owed[size_t(rank - 1)] <= 0)
+      throw Error("rank " + std::to_string(rank) + " sent a sub-frame of frame " +
+                  std::to_string(sf.frame) + " it was not given");
     const Rect& r = sf.region;
     if (r.x < 0 || r.y < 0 || r.x1() > rec->image.width || r.y1() > rec->image.height)
       throw Error("rank " + std::to_string(rank) + " sent a region outside the frame");
@@ -173,11 +196,11 @@ class Assembler {
         dst[3] = 255;
       }
     }
-    rec->clients[size_t(rank - 1)] = sf.stats;
-    rec->from[size_t(rank - 1)] = 1;
+    accumulate(rec->clients[size_t(rank - 1)], sf.stats);
+    --rec->owed[size_t(rank - 1)];
     if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
-    if (++rec->received == clients_) finishFrame(sf.frame, *rec);
+    if (++rec->received == rec->expected) finishFrame(sf.frame, *rec);
   }
 
   void finishFrame(uint32_t frame, FrameRecord& rec) {
@@ -220,6 +243,7 @@ class Assembler {
   const int clients_;
   const size_t frames_;
   FramePlanner* planner_;
+  std::function<void(int)> on_sub_frame_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::map<uint32_t, FrameRecord> pending_;
@@ -230,6 +254,77 @@ class Assembler {
   std::string csv_;
   Clock::time_point last_done_;
 };
+
+// --balance tiles-dynamic: tiles go out on demand, at most `window` in
+// flight per client, oldest frame first; a client gets its next tile as soon
+// as one of its sub-frames is back. Sends happen on the planning thread (a
+// frame's tiles arrive) and on the assembler thread (a tile returned),
+// serialised by the lock. The window is below what a client's queues hold,
+// so a send never waits for a client that waits for the server.
+class TileDispatcher {
+ public:
+  TileDispatcher(Comm& comm, Assembler& assembler, int clients, int window)
+      : comm_(comm), assembler_(assembler), pool_(0, clients, window), given_(size_t(clients)) {}
+
+  void add(std::vector<FrameJob> jobs) {
+    std::lock_guard<std::mutex> lock(mu_);
+    size_t first = pool_.size();
+    pool_.add(jobs.size());
+    for (size_t i = 0; i < jobs.size(); ++i) jobs_[uint32_t(first + i)] = std::move(jobs[i]);
+    pump();
+  }
+
+  // `client` (1-based) returned its oldest tile in flight.
+  void returned(int client) {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::deque<uint32_t>& given = given_[size_t(client - 1)];
+    if (given.empty()) return;  // the assembler rejects what was not given
+    pool_.done(client - 1, given.front());
+    given.pop_front();
+    pump();
+  }
+
+ private:
+  void pump() {
+    for (int k = 0; k < int(given_.size()); ++k)
+      for (uint32_t id : pool_.refill(k)) {
+        auto it = jobs_.find(id);
+        assembler_.owe(it->second.frame, k + 1);
+        comm_.send(k + 1, Tag::Job, encodeJob(it->second));
+        given_[size_t(k)].push_back(id);
+        jobs_.erase(it);
+      }
+  }
+
+  Comm& comm_;
+  Assembler& assembler_;
+  std::mutex mu_;
+  TilePool pool_;
+  std::map<uint32_t, FrameJob> jobs_;         // by pool index, until sent
+  std::vector<std::deque<uint32_t>> given_;  // per client, in the order sent
+};
+
+// --balance auto: the median round trip of a 1 KiB message to each client,
+// the slowest client's, in ms.
+double measureRoundTripMs(Comm& comm, int clients) {
+  std::vector<uint8_t> probe(1024, 0x5a);
+  double worst = 0;
+  for (int k = 1; k <= clients; ++k) {
+    std::vector<double> rtt;
+    for (int i = 0; i < 5; ++i) {
+      auto t0 = Clock::now();
+      comm.send(k, Tag::Ping, probe);
+      Message m = comm.recv(k);
+      if (m.tag != Tag::Pong || m.bytes != probe)
+        throw Error(std::string("link probe: client ") + std::to_string(k) + " answered " +
+                    tagName(m.tag));
+      rtt.push_back(msBetween(t0, Clock::now()));
+    }
+    std::sort(rtt.begin(), rtt.end());
+    worst = std::max(worst, rtt[rtt.size() / 2]);
+  }
+  return worst;
+}
 
 // Tells every client to stop and waits until each has said Bye, receiving
 // (and dropping) whatever they still send, so no rank is left blocked.
@@ -302,9 +397,19 @@ int runServer(Comm& comm, const ServerOptions& opts) {
 
   const ViewOptions& v = opts.view;
   double near = v.near > 0 ? v.near : defaultNear(scene);
+  Balance balance = opts.balance;
+  if (balance == Balance::Auto) {
+    double rtt = measureRoundTripMs(comm, clients);
+    balance = chooseBalance(clients, rtt);
+    std::fprintf(stderr, "dmmr-render: --balance auto: round trip %.3f ms, %d clients: %s\n", rtt,
+                 clients, balanceName(balance));
+  }
   FramePlanner planner(scene);
   Assembler assembler(comm, opts, clients, path.points.size(),
                       opts.visible_weights ? &planner : nullptr, std::move(csv));
+  TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
+  if (balance == Balance::TilesDynamic)
+    assembler.onSubFrame([&](int client) { dispatcher.returned(client); });
   std::thread assembling([&] { assembler.run(); });
   for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
     if (!assembler.waitForRoom(f)) break;
@@ -312,22 +417,49 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     rec.started = Clock::now();
     Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
     planner.planningFrame(f);
-    FramePlan plan = planner.plan(cam, v.width, v.height, clients);
-    rec.cull_ms = plan.cull_ms;
-    rec.divide_ms = plan.divide_ms;
-    rec.objects = plan.objects_in_frustum;
-    rec.triangles = plan.triangles_in_frustum;
+    // Each job, with the client it goes to (-1: the dispatcher decides).
+    std::vector<std::pair<int, FrameJob>> jobs;
+    if (balance == Balance::Frustum) {
+      FramePlan plan = planner.plan(cam, v.width, v.height, clients);
+      rec.cull_ms = plan.cull_ms;
+      rec.divide_ms = plan.divide_ms;
+      rec.objects = plan.objects_in_frustum;
+      rec.triangles = plan.triangles_in_frustum;
+      for (int k = 0; k < clients; ++k)
+        jobs.push_back({k + 1, FrameJob{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
+                                        std::move(plan.regions[size_t(k)].objects)}});
+    } else {
+      TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
+      rec.cull_ms = plan.cull_ms;
+      rec.divide_ms = plan.divide_ms;
+      rec.objects = plan.objects_in_frustum;
+      rec.triangles = plan.triangles_in_frustum;
+      auto job = [&](size_t t) {
+        return FrameJob{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
+      };
+      if (balance == Balance::TilesStatic) {
+        auto dealt = dealTiles(plan.tiles.size(), plan.columns, clients, opts.tile_order);
+        for (int k = 0; k < clients; ++k)
+          for (size_t i = 0; i < dealt[size_t(k)].size(); ++i) {
+            jobs.push_back({k + 1, job(dealt[size_t(k)][i])});
+            jobs.back().second.flush = i + 1 == dealt[size_t(k)].size();  // one batch back
+          }
+      } else {
+        for (size_t t = 0; t < plan.tiles.size(); ++t) jobs.push_back({-1, job(t)});
+      }
+    }
+    std::vector<int> owed(size_t(clients), 0);
+    for (const auto& [k, j] : jobs)
+      if (k > 0) ++owed[size_t(k - 1)];
     auto ts = Clock::now();
-    assembler.begin(f, std::move(rec));
+    assembler.begin(f, std::move(rec), std::move(owed), int(jobs.size()));
     try {
-      for (int k = 0; k < clients; ++k) {
-        FrameJob job{f,
-                     cam,
-                     v.width,
-                     v.height,
-                     plan.regions[size_t(k)].rect,
-                     std::move(plan.regions[size_t(k)].objects)};
-        comm.send(k + 1, Tag::Job, encodeJob(job));
+      if (balance == Balance::TilesDynamic) {
+        std::vector<FrameJob> pool;
+        for (auto& [k, j] : jobs) pool.push_back(std::move(j));
+        dispatcher.add(std::move(pool));
+      } else {
+        for (auto& [k, j] : jobs) comm.send(k, Tag::Job, encodeJob(j));
       }
     } catch (const std::exception& e) {
       assembler.markFailed(std::string("server: ") + e.what());

@@ -7,6 +7,7 @@
 
 #include "camera.h"
 #include "mpi_comm.h"
+#include "tiles.h"
 
 namespace dmmr {
 
@@ -31,6 +32,13 @@ struct ServerOptions {
   // Resume an interrupted run: render frames from this one on; the stats
   // CSV keeps the rows of the frames before it.
   uint32_t from_frame = 0;
+  // How frames are distributed (tiles.h): frustum division, or tile_w x
+  // tile_h tiles dealt statically in tile_order, or on demand with
+  // tile_window tiles in flight per client; auto measures the link at start.
+  Balance balance = Balance::Frustum;
+  int tile_w = 128, tile_h = 128;
+  TileOrder tile_order = TileOrder::Rows;
+  int tile_window = 2;
 };
 
 // Returns the process exit status; every message it prints names the rank

@@ -16,6 +16,24 @@ std::vector<Rect> makeTiles(const Rect& frame, int tile_w, int tile_h) {
   return tiles;
 }
 
+std::vector<std::vector<uint32_t>> objectsPerTile(const std::vector<Footprint>& items,
+                                                  const Rect& frame, int tile_w, int tile_h) {
+  DMMR_CHECK(tile_w >= 1 && tile_h >= 1);
+  int columns = frame.w > 0 ? (frame.w + tile_w - 1) / tile_w : 0;
+  int rows = frame.h > 0 ? (frame.h + tile_h - 1) / tile_h : 0;
+  std::vector<std::vector<uint32_t>> out(size_t(columns) * size_t(rows));
+  for (const Footprint& f : items) {
+    // Footprint pixels [x0, x1) x [y0, y1), clipped to the frame.
+    int x0 = std::max(f.x0, frame.x), x1 = std::min(f.x1, frame.x1());
+    int y0 = std::max(f.y0, frame.y), y1 = std::min(f.y1, frame.y1());
+    if (x0 >= x1 || y0 >= y1) continue;
+    for (int r = (y0 - frame.y) / tile_h; r <= (y1 - 1 - frame.y) / tile_h; ++r)
+      for (int c = (x0 - frame.x) / tile_w; c <= (x1 - 1 - frame.x) / tile_w; ++c)
+        out[size_t(r) * size_t(columns) + size_t(c)].push_back(f.object);
+  }
+  return out;
+}
+
 std::vector<std::vector<uint32_t>> dealTiles(size_t tiles, int columns, int clients,
                                              TileOrder order) {
   DMMR_CHECK(columns >= 1 && clients >= 1);
@@ -31,6 +49,11 @@ std::vector<std::vector<uint32_t>> dealTiles(size_t tiles, int columns, int clie
 TilePool::TilePool(size_t tiles, int clients, int window)
     : owner_(tiles, -1), back_(tiles, 0), in_flight_(size_t(clients), 0), window_(window) {
   DMMR_CHECK(clients >= 1 && window >= 1);
+}
+
+void TilePool::add(size_t tiles) {
+  owner_.resize(owner_.size() + tiles, -1);
+  back_.resize(back_.size() + tiles, 0);
 }
 
 std::vector<uint32_t> TilePool::refill(int client) {
@@ -49,6 +72,43 @@ void TilePool::done(int client, uint32_t tile) {
   back_[tile] = 1;
   --in_flight_[size_t(client)];
   ++returned_;
+}
+
+bool parseTileSize(const std::string& text, int* w, int* h) {
+  size_t x = text.find('x');
+  if (x == std::string::npos || x == 0 || x + 1 >= text.size()) return false;
+  auto number = [](const std::string& t, int* out) {
+    if (t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos) return false;
+    *out = std::stoi(t);
+    return *out >= 1 && *out <= 16384;
+  };
+  return number(text.substr(0, x), w) && number(text.substr(x + 1), h);
+}
+
+const char* balanceName(Balance b) {
+  switch (b) {
+    case Balance::Frustum: return "frustum";
+    case Balance::TilesStatic: return "tiles-static";
+    case Balance::TilesDynamic: return "tiles-dynamic";
+    case Balance::Auto: return "auto";
+  }
+  return "?";
+}
+
+bool parseBalance(const std::string& text, Balance* out) {
+  for (Balance b : {Balance::Frustum, Balance::TilesStatic, Balance::TilesDynamic, Balance::Auto})
+    if (text == balanceName(b)) {
+      *out = b;
+      return true;
+    }
+  return false;
+}
+
+Balance chooseBalance(int clients, double round_trip_ms) {
+  // Placeholder rule until the network benchmark decides (see the docs).
+  (void)round_trip_ms;
+  (void)clients;
+  return Balance::Frustum;
 }
 
 double linkSeconds(uint64_t bytes, const LinkModel& link, double u) {

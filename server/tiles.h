@@ -7,8 +7,10 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
+#include "divide.h"
 #include "math.h"
 
 namespace dmmr {
@@ -17,6 +19,13 @@ namespace dmmr {
 // the bottom row of tiles first, each left to right); the last column and
 // row are cut to fit. tile_w, tile_h >= 1; an empty frame has no tiles.
 std::vector<Rect> makeTiles(const Rect& frame, int tile_w, int tile_h);
+
+// Per tile of makeTiles(frame, tile_w, tile_h), the objects whose footprint
+// overlaps it (the per-tile cull: a tile's client draws only these). Lists
+// are ascending when `items` is ascending by object; a footprint with no
+// pixels goes nowhere.
+std::vector<std::vector<uint32_t>> objectsPerTile(const std::vector<Footprint>& items,
+                                                  const Rect& frame, int tile_w, int tile_h);
 
 enum class TileOrder : uint8_t {
   Rows,         // the paper's round-robin: tile i to client i mod n
@@ -37,6 +46,9 @@ std::vector<std::vector<uint32_t>> dealTiles(size_t tiles, int columns, int clie
 class TilePool {
  public:
   TilePool(size_t tiles, int clients, int window);
+  // Appends `tiles` more to the pool (the next frame's, say), numbered on.
+  void add(size_t tiles);
+  size_t size() const { return owner_.size(); }
   // Tiles to send `client` now: enough to fill its window from the pool,
   // lowest index first. Empty when the pool is dry or the window is full.
   std::vector<uint32_t> refill(int client);
@@ -55,6 +67,25 @@ class TilePool {
   int window_;
   size_t next_ = 0, returned_ = 0;
 };
+
+// Parses "WxH" (W, H in 1..16384); false when malformed.
+bool parseTileSize(const std::string& text, int* w, int* h);
+
+// How the server distributes a frame among the clients.
+enum class Balance : uint8_t {
+  Frustum,       // DMMR's load-balanced frustum division: one region per client
+  TilesStatic,   // tiles dealt up front (TileOrder); each client returns its batch
+  TilesDynamic,  // tiles on demand, `window` in flight per client, returned one by one
+  Auto,          // chooseBalance decides from the clients and the measured link
+};
+const char* balanceName(Balance b);
+// Parses frustum | tiles-static | tiles-dynamic | auto; false when unknown.
+bool parseBalance(const std::string& text, Balance* out);
+
+// --balance auto: picks a strategy from the client count and the link's
+// round-trip time measured at start-up (docs/benchmarks.md, "Tiles and
+// networks", has the measurements behind the rule).
+Balance chooseBalance(int clients, double round_trip_ms);
 
 // A network link as a model: latency, bandwidth and jitter.
 struct LinkModel {
