@@ -41,7 +41,9 @@
 namespace {
 
 volatile sig_atomic_t g_stop = 0;
-void onSignal(int) { g_stop = 1; }
+void onSignal(int) {
+  g_stop = 1;
+}
 
 int64_t nowNs() {
   timespec ts{};
@@ -177,7 +179,7 @@ int main(int argc, char** argv) {
   sp.sched_priority = 50;
   bool realtime = sched_setscheduler(0, SCHED_FIFO, &sp) == 0;
 
-  struct sigaction sa{};
+  struct sigaction sa {};
   sa.sa_handler = onSignal;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
@@ -227,6 +229,7 @@ int main(int argc, char** argv) {
   std::deque<Held> held;
   int64_t lastDue = 0;
   uint64_t packets = 0, releases = 0, maxHeld = 0;
+  int64_t lateSumNs = 0, lateMaxNs = 0;  // how long after its due time a release went out
   std::vector<char> buf(1 << 16);
   const uint16_t pktType = (NFNL_SUBSYS_QUEUE << 8) | NFQNL_MSG_PACKET;
 
@@ -236,6 +239,10 @@ int main(int argc, char** argv) {
     bool any = false;
     while (!held.empty() && (all || held.front().due <= now)) {
       last = held.front().id;
+      if (!all) {
+        lateSumNs += now - held.front().due;
+        lateMaxNs = std::max(lateMaxNs, now - held.front().due);
+      }
       any = true;
       held.pop_front();
     }
@@ -305,11 +312,13 @@ int main(int argc, char** argv) {
     release(false);
   }
   release(true);
-  std::fprintf(stderr,
-               "dmmr-netem-delayd: queue %u delay %lld us jitter %lld us: %llu packets, %llu "
-               "releases, at most %llu held, realtime %d\n",
-               unsigned(queue), (long long)delayUs, (long long)jitterUs,
-               (unsigned long long)packets, (unsigned long long)releases,
-               (unsigned long long)maxHeld, realtime ? 1 : 0);
+  std::fprintf(
+      stderr,
+      "dmmr-netem-delayd: queue %u delay %lld us jitter %lld us: %llu packets, %llu "
+      "releases, at most %llu held, release late by %.1f us mean %.1f us max, realtime %d\n",
+      unsigned(queue), (long long)delayUs, (long long)jitterUs, (unsigned long long)packets,
+      (unsigned long long)releases, (unsigned long long)maxHeld,
+      packets ? double(lateSumNs) / double(packets) / 1e3 : 0.0, double(lateMaxNs) / 1e3,
+      realtime ? 1 : 0);
   return 0;
 }

@@ -57,8 +57,8 @@ int main(int argc, char** argv) {
   int len = 0;
   MPI_Get_processor_name(name, &len);
   std::vector<char> names(size_t(size) * MPI_MAX_PROCESSOR_NAME);
-  MPI_Gather(name, MPI_MAX_PROCESSOR_NAME, MPI_CHAR, names.data(), MPI_MAX_PROCESSOR_NAME,
-             MPI_CHAR, 0, MPI_COMM_WORLD);
+  MPI_Gather(name, MPI_MAX_PROCESSOR_NAME, MPI_CHAR, names.data(), MPI_MAX_PROCESSOR_NAME, MPI_CHAR,
+             0, MPI_COMM_WORLD);
 
   if (rank <= 1) {
     const int peer = 1 - rank;
@@ -90,11 +90,13 @@ int main(int argc, char** argv) {
       }
     }
     if (rank == 0) {
-      for (int r = 0; r < size; ++r) std::printf("rank%d=%s\n", r, &names[size_t(r) * MPI_MAX_PROCESSOR_NAME]);
+      for (int r = 0; r < size; ++r)
+        std::printf("rank%d=%s\n", r, &names[size_t(r) * MPI_MAX_PROCESSOR_NAME]);
       std::sort(rtt.begin(), rtt.end());
       double mean = std::accumulate(rtt.begin(), rtt.end(), 0.0) / double(rtt.size());
-      std::printf("pings=%ld\nrtt_ms_min=%.3f\nrtt_ms_median=%.3f\nrtt_ms_mean=%.3f\nrtt_ms_max=%.3f\n",
-                  pings, rtt.front() * 1e3, median(rtt) * 1e3, mean * 1e3, rtt.back() * 1e3);
+      std::printf(
+          "pings=%ld\nrtt_ms_min=%.3f\nrtt_ms_median=%.3f\nrtt_ms_mean=%.3f\nrtt_ms_max=%.3f\n",
+          pings, rtt.front() * 1e3, median(rtt) * 1e3, mean * 1e3, rtt.back() * 1e3);
       std::printf("one_way_ms=%.3f\nbytes=%ld\n", oneWay * 1e3, bytes);
       for (long r = 0; r < reps; ++r) std::printf("transfer_s_%ld=%.4f\n", r, transfer[size_t(r)]);
       double t = median(transfer);
