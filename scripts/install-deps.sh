@@ -14,6 +14,7 @@ packages=(
   libasan8 libubsan1 libtsan2  # gcc's sanitizer runtimes (CMakePresets.json)
   python3 time
   python3-matplotlib
+  iptables iproute2  # network emulation (scripts/netem: NFQUEUE delay, namespaces, tc)
 )
 
 missing=()

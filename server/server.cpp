@@ -130,7 +130,7 @@ class Assembler {
   // clients that owe the oldest frame and ends the job (an orderly shutdown
   // would wait for them forever). Every frame assembled so far is on disk.
   [[noreturn]] void silent() {
-    std::string who;
+    std::string who, owed;
     uint32_t frame = 0;
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -138,18 +138,20 @@ class Assembler {
         frame = pending_.begin()->first;
         const FrameRecord& rec = pending_.begin()->second;
         for (int k = 1; k <= clients_; ++k)
-          if (int n = rec.owed[size_t(k - 1)]; n > 0)
+          if (int n = rec.owed[size_t(k - 1)]; n > 0) {
             who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(k) +
-                   " (rank " + std::to_string(k) + ", " + std::to_string(n) + " sub-frame" +
-                   (n > 1 ? "s" : "") + ")";
+                   " (rank " + std::to_string(k) + ")";
+            owed += (owed.empty() ? "" : ", ") + std::to_string(n) + " from client " +
+                    std::to_string(k);
+          }
       }
     }
     std::fprintf(stderr,
                  "\ndmmr-render: server (rank 0): %s sent nothing for %.0f s while frame %u "
-                 "waited for it: it died or hangs; aborting the run (%u frames assembled and "
-                 "written)\n",
+                 "waited for it (sub-frames owed: %s): it died or hangs; aborting the run "
+                 "(%u frames assembled and written)\n",
                  who.empty() ? "no client" : who.c_str(), opts_.client_timeout_s, frame,
-                 assembled_);
+                 owed.empty() ? "none" : owed.c_str(), assembled_);
     comm_.abort(3);
   }
 

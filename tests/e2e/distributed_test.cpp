@@ -128,6 +128,89 @@ TEST_P(Distributed, FramesArePixelIdenticalToTheReference) {
 
 INSTANTIATE_TEST_SUITE_P(Clients, Distributed, testing::Values(1, 2, 3, 4, 7));
 
+// The tile strategies (--balance tiles-static / tiles-dynamic / auto):
+// pixel-identical to the reference for every client count, tile size (160 x
+// 120 frames: 32x32 gives 5 x 4 tiles, 50x40 cuts the last column and row,
+// 200x200 is one tile) and dealing option.
+struct TileCase {
+  int clients;
+  std::string options;
+};
+class Tiles : public testing::TestWithParam<TileCase> {};
+
+TEST_P(Tiles, FramesArePixelIdenticalToTheReference) {
+  SmallScene& s = smallScene();
+  const TileCase& c = GetParam();
+  std::string name = "tiles" + std::to_string(c.clients) + c.options;
+  for (char& ch : name)
+    if (ch == ' ' || ch == '-') ch = '_';
+  std::string out = s.dir / name;
+  int status = 0;
+  std::string log = s.render(c.clients, out, c.options + " --stats " + out + ".csv", &status);
+  ASSERT_EQ(status, 0) << log;
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+  // Every client drew: each one's summed per-tile stats show triangles.
+  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
+  ASSERT_EQ(rows.size(), 4u);
+  for (int k = 1; k <= c.clients; ++k) {
+    double tris = 0;
+    for (const auto& row : rows) tris += row.at("c" + std::to_string(k) + "_triangles");
+    if (c.options.find("200x200") == std::string::npos || k == 1)
+      EXPECT_GT(tris, 0) << "client " << k << " drew nothing";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Balance, Tiles,
+    testing::Values(TileCase{3, "--balance tiles-static --tile 32x32"},
+                    TileCase{3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
+                    TileCase{2, "--balance tiles-static --tile 200x200"},
+                    TileCase{3, "--balance tiles-dynamic --tile 32x32 --tiles-in-flight 1"},
+                    TileCase{3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"},
+                    TileCase{2, "--balance auto"}));
+
+// A client that stops answering mid-frame under the tile strategies: the
+// server's timeout ends the run naming it, every frame before is on disk.
+class TileFailure : public testing::TestWithParam<std::string> {};
+
+TEST_P(TileFailure, AClientThatHangsMidFrameEndsTheRunNamingIt) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / ("hung_" + GetParam());
+  int status = 0;
+  auto t0 = std::chrono::steady_clock::now();
+  std::string log = s.render(2, out, "--balance " + GetParam() + " --tile 32x32 --client-timeout 3",
+                             &status, "", "DMMR_INJECT_FAULT=render:2:hang");
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung\n" << log;
+  EXPECT_LT(seconds, 60) << log;
+  EXPECT_NE(log.find("client 1 (rank 1) sent nothing for 3 s"), std::string::npos) << log;
+  EXPECT_NE(log.find("from client 1"), std::string::npos) << "the tiles it owes\n" << log;
+  expectFramesIntact(s.reference, out);
+  EXPECT_TRUE(fs::exists(out + "/frame_000001.png")) << "frame 1 was done before the hang";
+}
+
+TEST_P(TileFailure, AClientKilledMidFrameEndsTheRunNamingIt) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / ("killed_" + GetParam());
+  int status = 0;
+  std::string log = s.render(2, out, "--balance " + GetParam() + " --tile 32x32", &status, "",
+                             "DMMR_INJECT_FAULT=render:2:kill");
+  EXPECT_NE(status, 0);
+  EXPECT_NE(status, 124) << "timed out: a rank hung\n" << log;
+  EXPECT_NE(log.find("rank 1"), std::string::npos) << log;
+  expectFramesIntact(s.reference, out);
+}
+
+INSTANTIATE_TEST_SUITE_P(Balance, TileFailure, testing::Values("tiles-static", "tiles-dynamic"),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           n.erase(n.find('-'), 1);
+                           return n;
+                         });
+
 TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
   SmallScene& s = smallScene();
   std::string out = s.dir / "zlib";
