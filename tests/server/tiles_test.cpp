@@ -130,3 +130,77 @@ TEST(LinkModel, LatencyPlusSizeOverBandwidthPlusJitter) {
   EXPECT_DOUBLE_EQ(linkSeconds(0, wifi, 0), 0.005);
   EXPECT_DOUBLE_EQ(linkSeconds(1'250'000, wifi, 0.5), 0.005 + 0.1 + 0.001);
 }
+
+TEST(ObjectsPerTile, MatchesBruteForceOverlapOnRandomFootprints) {
+  std::mt19937 rng(21);
+  for (int trial = 0; trial < 200; ++trial) {
+    Rect frame{0, 0, 1 + int(rng() % 300), 1 + int(rng() % 200)};
+    int tw = 1 + int(rng() % 90), th = 1 + int(rng() % 90);
+    std::vector<Footprint> items;
+    for (uint32_t o = 0; o < 60; ++o) {
+      if (rng() % 4 == 0) continue;  // not every object is in view
+      int x0 = int(rng() % 340) - 20, y0 = int(rng() % 240) - 20;
+      // Some footprints are empty (x1 <= x0): they must go nowhere.
+      items.push_back({o, x0, x0 + int(rng() % 80) - 5, y0, y0 + int(rng() % 80) - 5, 1});
+    }
+    std::vector<Rect> tiles = makeTiles(frame, tw, th);
+    auto lists = objectsPerTile(items, frame, tw, th);
+    ASSERT_EQ(lists.size(), tiles.size());
+    for (size_t t = 0; t < tiles.size(); ++t) {
+      Ids want;
+      const Rect& r = tiles[t];
+      for (const Footprint& f : items)
+        if (f.x0 < f.x1 && f.y0 < f.y1 && f.x0 < r.x1() && f.x1 > r.x && f.y0 < r.y1() &&
+            f.y1 > r.y)
+          want.push_back(f.object);
+      EXPECT_EQ(lists[t], want) << "trial " << trial << " tile " << t;
+    }
+  }
+}
+
+TEST(ObjectsPerTile, AFootprintOnATileCornerGoesToTheFourTilesAroundIt) {
+  // Footprint pixels [63, 65) x [63, 65) touch the tiles at (0,0) (1,0) (0,1) (1,1).
+  auto lists = objectsPerTile({{7, 63, 65, 63, 65, 1}}, {0, 0, 256, 256}, 64, 64);
+  ASSERT_EQ(lists.size(), 16u);
+  for (size_t t : {0u, 1u, 4u, 5u}) EXPECT_EQ(lists[t], Ids{7}) << t;
+  size_t total = 0;
+  for (const auto& l : lists) total += l.size();
+  EXPECT_EQ(total, 4u);
+}
+
+TEST(TilePool, AddedTilesAreHandedOutAfterTheEarlierOnes) {
+  TilePool p(2, 2, 2);
+  EXPECT_EQ(p.refill(0), (Ids{0, 1}));
+  EXPECT_EQ(p.refill(1), Ids{});
+  p.add(3);  // the next frame's tiles
+  EXPECT_EQ(p.size(), 5u);
+  EXPECT_FALSE(p.finished());
+  EXPECT_EQ(p.refill(1), (Ids{2, 3}));
+  EXPECT_EQ(p.refill(0), Ids{});  // its window is full
+  p.done(0, 1);
+  EXPECT_EQ(p.refill(0), Ids{4});
+  for (auto [k, t] : {std::pair{0, 0u}, {1, 2u}, {1, 3u}, {0, 4u}}) p.done(k, t);
+  EXPECT_TRUE(p.finished());
+}
+
+TEST(ParseTileSize, AcceptsWxHAndRejectsTheRest) {
+  int w = 0, h = 0;
+  EXPECT_TRUE(parseTileSize("128x64", &w, &h));
+  EXPECT_EQ(w, 128);
+  EXPECT_EQ(h, 64);
+  EXPECT_TRUE(parseTileSize("1x16384", &w, &h));
+  for (const char* bad : {"", "x", "128", "128x", "x64", "0x64", "64x0", "16385x1", "-1x4", "12 x4",
+                          "4x4x4", "axb", "99999999999x1"})
+    EXPECT_FALSE(parseTileSize(bad, &w, &h)) << bad;
+}
+
+TEST(ParseBalance, NamesRoundTrip) {
+  for (Balance b : {Balance::Frustum, Balance::TilesStatic, Balance::TilesDynamic, Balance::Auto}) {
+    Balance got = Balance::Auto;
+    EXPECT_TRUE(parseBalance(balanceName(b), &got)) << balanceName(b);
+    EXPECT_EQ(got, b);
+  }
+  Balance got;
+  EXPECT_FALSE(parseBalance("tiles", &got));
+  EXPECT_FALSE(parseBalance("Frustum", &got));
+}
