@@ -253,9 +253,9 @@ class VisibilityStage {
   VisibilityOptions opts_;
   bool prefetch_;
   GlStage gl_;
-  std::vector<uint32_t> previous_;      // last frame's visible list (ascending)
-  std::vector<uint32_t> marked_until_;  // per object: first frame to query again
-  uint32_t frame_ = UINT32_MAX;         // the frame of the jobs being decided
+  std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
+  std::vector<uint32_t> marked_until_;              // per object: first frame to query again
+  uint32_t frame_ = UINT32_MAX;                     // the frame of the jobs being decided
   std::vector<uint32_t> visible_now_, passed_now_;  // this frame's, over its jobs
   std::vector<GLuint> queries_;
 };

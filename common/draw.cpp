@@ -183,7 +183,8 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   u_box_bound_ = gl_.GetUniformLocation(box_program_, "u_bound");
   for (GLuint p : {program_, id_program_, box_program_}) {
     gl_.UseProgram(p);
-    gl_.Uniform2f(gl_.GetUniformLocation(p, "u_ndc_scale"), 2.f / float(width), 2.f / float(height));
+    gl_.Uniform2f(gl_.GetUniformLocation(p, "u_ndc_scale"), 2.f / float(width),
+                  2.f / float(height));
   }
   u_id_mv_ = gl_.GetUniformLocation(id_program_, "u_mv");
   u_id_proj_ = gl_.GetUniformLocation(id_program_, "u_proj");
@@ -369,8 +370,7 @@ Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height) {
 }
 
 void Renderer::setDepthBound(GLint location, const Box3d& box) {
-  float k[9] = {0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound),
-                0, 0, float(kNoDepthBound)};
+  float k[9] = {0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound)};
   if (box.valid()) {
     EntryDepthPlanes p = entryDepthPlanes(box, camera_);
     for (int i = 0; i < 9; ++i) k[i] = float(p.k[size_t(i / 3)][size_t(i % 3)]);

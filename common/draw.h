@@ -92,8 +92,7 @@ class Renderer {
   // 0 is background) with the same vertex transform and depth test as draw(),
   // so that the id buffer says which object owns each pixel of the frame.
   void beginIdFrame(const Camera& camera, const Rect& region);
-  void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
-              uint32_t id);
+  void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds, uint32_t id);
 
   // Draws an object into depth only (beginDepthFrame passes), in full or,
   // with `lod`, with its occluder level of detail where it has one (an

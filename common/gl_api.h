@@ -56,7 +56,7 @@ namespace dmmr {
   X(void, DeleteProgram, (GLuint))                                                       \
   X(GLint, GetUniformLocation, (GLuint, const GLchar*))                                  \
   X(void, Uniform1i, (GLint, GLint))                                                     \
-  X(void, Uniform2f, (GLint, GLfloat, GLfloat))                                           \
+  X(void, Uniform2f, (GLint, GLfloat, GLfloat))                                          \
   X(void, Uniform3fv, (GLint, GLsizei, const GLfloat*))                                  \
   X(void, Uniform4fv, (GLint, GLsizei, const GLfloat*))                                  \
   X(void, UniformMatrix3fv, (GLint, GLsizei, GLboolean, const GLfloat*))                 \

@@ -135,17 +135,29 @@ SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes) {
 }
 
 void accumulate(ClientStats& a, const ClientStats& b) {
-  for (auto [x, y] : {std::pair{&a.prepare_ms, b.prepare_ms}, {&a.retrieve_ms, b.retrieve_ms},
-                      {&a.pass_ms, b.pass_ms}, {&a.load_ms, b.load_ms}, {&a.render_ms, b.render_ms},
-                      {&a.readback_ms, b.readback_ms}, {&a.compress_ms, b.compress_ms},
+  for (auto [x, y] : {std::pair{&a.prepare_ms, b.prepare_ms},
+                      {&a.retrieve_ms, b.retrieve_ms},
+                      {&a.pass_ms, b.pass_ms},
+                      {&a.load_ms, b.load_ms},
+                      {&a.render_ms, b.render_ms},
+                      {&a.readback_ms, b.readback_ms},
+                      {&a.compress_ms, b.compress_ms},
                       {&a.send_ms, b.send_ms}})
     *x += y;
-  for (auto [x, y] :
-       {std::pair{&a.objects, b.objects}, {&a.occluders, b.occluders}, {&a.queried, b.queried},
-        {&a.visible, b.visible}, {&a.triangles, b.triangles}, {&a.bytes_raw, b.bytes_raw},
-        {&a.bytes_sent, b.bytes_sent}, {&a.gpu_hits, b.gpu_hits}, {&a.gpu_misses, b.gpu_misses},
-        {&a.ram_hits, b.ram_hits}, {&a.ram_misses, b.ram_misses}, {&a.disk_bytes, b.disk_bytes},
-        {&a.uncached, b.uncached}, {&a.skipped, b.skipped}})
+  for (auto [x, y] : {std::pair{&a.objects, b.objects},
+                      {&a.occluders, b.occluders},
+                      {&a.queried, b.queried},
+                      {&a.visible, b.visible},
+                      {&a.triangles, b.triangles},
+                      {&a.bytes_raw, b.bytes_raw},
+                      {&a.bytes_sent, b.bytes_sent},
+                      {&a.gpu_hits, b.gpu_hits},
+                      {&a.gpu_misses, b.gpu_misses},
+                      {&a.ram_hits, b.ram_hits},
+                      {&a.ram_misses, b.ram_misses},
+                      {&a.disk_bytes, b.disk_bytes},
+                      {&a.uncached, b.uncached},
+                      {&a.skipped, b.skipped}})
     *x += y;
   a.gpu_resident = b.gpu_resident;
   a.ram_resident = b.ram_resident;

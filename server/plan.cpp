@@ -85,7 +85,8 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
   auto t0 = Clock::now();
-  std::vector<uint32_t> visible = cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
+  std::vector<uint32_t> visible =
+      cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
   auto t1 = Clock::now();
   std::vector<Footprint> items = footprints(visible, camera, width, height);
   auto tp = Clock::now();
@@ -102,7 +103,8 @@ TilePlan FramePlanner::planTiles(const Camera& camera, int width, int height, in
   using Clock = std::chrono::steady_clock;
   TilePlan plan;
   auto t0 = Clock::now();
-  std::vector<uint32_t> visible = cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
+  std::vector<uint32_t> visible =
+      cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
   auto t1 = Clock::now();
   Rect frame{0, 0, width, height};
   plan.tiles = makeTiles(frame, tile_w, tile_h);

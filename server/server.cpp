@@ -37,9 +37,9 @@ struct FrameRecord {
   uint64_t objects = 0, triangles = 0;
   std::vector<uint64_t> region_objects;  // as planned, per client
   Image image;                           // assembled RGBA, top row first
-  std::vector<ClientStats> clients;  // per client, summed over its sub-frames
-  std::vector<int> owed;             // per client: sub-frames given and not yet back
-  int expected = 0;                  // sub-frames that make up the frame
+  std::vector<ClientStats> clients;      // per client, summed over its sub-frames
+  std::vector<int> owed;                 // per client: sub-frames given and not yet back
+  int expected = 0;                      // sub-frames that make up the frame
   int received = 0;
 };
 
@@ -302,7 +302,7 @@ class TileDispatcher {
   Assembler& assembler_;
   std::mutex mu_;
   TilePool pool_;
-  std::map<uint32_t, FrameJob> jobs_;         // by pool index, until sent
+  std::map<uint32_t, FrameJob> jobs_;        // by pool index, until sent
   std::vector<std::deque<uint32_t>> given_;  // per client, in the order sent
 };
 

@@ -87,10 +87,14 @@ bool parseTileSize(const std::string& text, int* w, int* h) {
 
 const char* balanceName(Balance b) {
   switch (b) {
-    case Balance::Frustum: return "frustum";
-    case Balance::TilesStatic: return "tiles-static";
-    case Balance::TilesDynamic: return "tiles-dynamic";
-    case Balance::Auto: return "auto";
+    case Balance::Frustum:
+      return "frustum";
+    case Balance::TilesStatic:
+      return "tiles-static";
+    case Balance::TilesDynamic:
+      return "tiles-dynamic";
+    case Balance::Auto:
+      return "auto";
   }
   return "?";
 }

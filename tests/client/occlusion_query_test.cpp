@@ -214,8 +214,8 @@ TEST_F(OcclusionQuery, BoxesNotTakenAtTheNearPlaneGiveAnHonestQuery) {
 // of the front faces of its query box: what would let the visibility stage
 // cull an object the reference shows. `bounded`: with the object's box as
 // the fragments' depth bound, as every renderer draws; otherwise unbounded.
-int pixelsInFrontOfQueryBox(Renderer& r, const GlApi& gl, const Camera& cam,
-                            const GeometryData& g, bool bounded) {
+int pixelsInFrontOfQueryBox(Renderer& r, const GlApi& gl, const Camera& cam, const GeometryData& g,
+                            bool bounded) {
   GpuMesh m = r.upload(g);
   Box3d b = positionBox(g);
   r.beginDepthFrame(cam, {0, 0, kSize, kSize});
@@ -267,6 +267,7 @@ TEST_F(OcclusionQuery, SliverTrianglesSeenEdgeOnStayBehindTheirQueryBox) {
   EXPECT_EQ(bounded, 0) << "pixels of slivers drawn in front of their query box";
   // Not an assertion on the rasteriser, a record of what the bound guards
   // against on this one.
-  std::cout << "slivers: " << slivers << ", pixels in front of their query box unbounded: "
-            << unbounded << ", bounded: " << bounded << "\n";
+  std::cout << "slivers: " << slivers
+            << ", pixels in front of their query box unbounded: " << unbounded
+            << ", bounded: " << bounded << "\n";
 }

@@ -576,7 +576,6 @@ TEST(CameraTest, CameraAtUsesImageAspect) {
   EXPECT_EQ(c.near, 0.25);
 }
 
-
 // The ray through (ndc_x, ndc_y) in world space: the eye and a direction whose
 // eye-space z is -1, so a point at parameter t is at eye distance t.
 Vec3d rayDirection(const Camera& c, double ndc_x, double ndc_y) {
@@ -605,7 +604,10 @@ TEST(EntryDepthTest, MatchesRaySlabEntryOnRandomCamerasAndBoxes) {
   std::uniform_real_distribution<double> pos(-50, 50), size(0.01, 20), ndc(-1, 1), fov(10, 120);
   int hits = 0, misses = 0;
   for (int trial = 0; trial < 4000; ++trial) {
-    Camera c{{pos(rng), pos(rng), pos(rng)}, randomUnitQuat(rng), fov(rng), 0.5 + ndc(rng) * 0.4 + 1,
+    Camera c{{pos(rng), pos(rng), pos(rng)},
+             randomUnitQuat(rng),
+             fov(rng),
+             0.5 + ndc(rng) * 0.4 + 1,
              0.01};
     Vec3d lo{pos(rng), pos(rng), pos(rng)};
     Box3d b{lo, lo + Vec3d{size(rng), size(rng), size(rng)}};
@@ -662,7 +664,7 @@ TEST(EntryDepthTest, BoundsEveryPointOfTheBoxOnTheRay) {
 
 TEST(EntryDepthTest, EyeInsideASlabSetsNoBoundForThatAxis) {
   Camera c{{0, 0, 0}, Quatd{}, 90, 1, 1};  // looking down -Z
-  Box3d b{{-1, -1, -10}, {1, 1, -5}};       // the eye is inside the x and y slabs
+  Box3d b{{-1, -1, -10}, {1, 1, -5}};      // the eye is inside the x and y slabs
   EntryDepthPlanes p = entryDepthPlanes(b, c);
   EXPECT_EQ(p.k[0], (std::array<double, 3>{0, 0, kNoDepthBound}));
   EXPECT_EQ(p.k[1], (std::array<double, 3>{0, 0, kNoDepthBound}));

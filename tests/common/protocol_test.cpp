@@ -78,8 +78,8 @@ TEST(Protocol, ABatchOfSubFramesRoundTrips) {
 
 TEST(Protocol, SubFramesRejectAnEmptyBatchTruncationAndTrailingBytes) {
   EXPECT_NE(errorOf(encodeSubFrames({}), false).find("no sub-frames"), std::string::npos);
-  std::vector<uint8_t> b = encodeSubFrames({sampleSubFrame(1, {0, 0, 2, 2}),
-                                            sampleSubFrame(1, {2, 0, 2, 2})});
+  std::vector<uint8_t> b =
+      encodeSubFrames({sampleSubFrame(1, {0, 0, 2, 2}), sampleSubFrame(1, {2, 0, 2, 2})});
   for (size_t n : {size_t(2), size_t(40), b.size() / 2, b.size() - 1})
     EXPECT_NE(errorOf({b.begin(), b.begin() + long(n)}, false), "") << "truncated to " << n;
   b.push_back(7);
