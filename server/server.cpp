@@ -180,10 +180,12 @@ class Assembler {
         throw Error("rank " + std::to_string(rank) + " sent frame " + std::to_string(sf.frame) +
                     ", which is not in flight");
       rec = &it->second;
+      // Under the lock: the dynamic dealer adds to `owed` from other threads.
+      if (rank < 1 || rank > clients_ || rec->owed[size_t(rank - 1)] <= 0)
+        throw Error("rank " + std::to_string(rank) + " sent a sub-frame of frame " +
+                    std::to_string(sf.frame) + " it was not given");
+      --rec->owed[size_t(rank - 1)];
     }
-    if (rank < 1 || rank > clients_ || rec->owed[size_t(rank - 1)] <= 0)
-      throw Error("rank " + std::to_string(rank) + " sent a sub-frame of frame " +
-                  std::to_string(sf.frame) + " it was not given");
     const Rect& r = sf.region;
     if (r.x < 0 || r.y < 0 || r.x1() > rec->image.width || r.y1() > rec->image.height)
       throw Error("rank " + std::to_string(rank) + " sent a region outside the frame");
@@ -199,7 +201,6 @@ class Assembler {
       }
     }
     accumulate(rec->clients[size_t(rank - 1)], sf.stats);
-    --rec->owed[size_t(rank - 1)];
     if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     if (++rec->received == rec->expected) finishFrame(sf.frame, *rec);

@@ -133,6 +133,7 @@ INSTANTIATE_TEST_SUITE_P(Clients, Distributed, testing::Values(1, 2, 3, 4, 7));
 // 120 frames: 32x32 gives 5 x 4 tiles, 50x40 cuts the last column and row,
 // 200x200 is one tile) and dealing option.
 struct TileCase {
+  std::string name;
   int clients;
   std::string options;
 };
@@ -141,10 +142,7 @@ class Tiles : public testing::TestWithParam<TileCase> {};
 TEST_P(Tiles, FramesArePixelIdenticalToTheReference) {
   SmallScene& s = smallScene();
   const TileCase& c = GetParam();
-  std::string name = "tiles" + std::to_string(c.clients) + c.options;
-  for (char& ch : name)
-    if (ch == ' ' || ch == '-') ch = '_';
-  std::string out = s.dir / name;
+  std::string out = s.dir / ("tiles_" + c.name);
   int status = 0;
   std::string log = s.render(c.clients, out, c.options + " --stats " + out + ".csv", &status);
   ASSERT_EQ(status, 0) << log;
@@ -164,12 +162,14 @@ TEST_P(Tiles, FramesArePixelIdenticalToTheReference) {
 
 INSTANTIATE_TEST_SUITE_P(
     Balance, Tiles,
-    testing::Values(TileCase{3, "--balance tiles-static --tile 32x32"},
-                    TileCase{3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
-                    TileCase{2, "--balance tiles-static --tile 200x200"},
-                    TileCase{3, "--balance tiles-dynamic --tile 32x32 --tiles-in-flight 1"},
-                    TileCase{3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"},
-                    TileCase{2, "--balance auto"}));
+    testing::Values(
+        TileCase{"static3", 3, "--balance tiles-static --tile 32x32"},
+        TileCase{"interleaved3", 3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
+        TileCase{"onetile2", 2, "--balance tiles-static --tile 200x200"},
+        TileCase{"dynamic3w1", 3, "--balance tiles-dynamic --tile 32x32 --tiles-in-flight 1"},
+        TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"},
+        TileCase{"auto2", 2, "--balance auto"}),
+    [](const auto& info) { return info.param.name; });
 
 // A client that stops answering mid-frame under the tile strategies: the
 // server's timeout ends the run naming it, every frame before is on disk.
