@@ -10,6 +10,7 @@
 #include "bytes.h"
 #include "formats.h"
 #include "image.h"
+#include "protocol.h"
 #include "walkthrough.h"
 
 namespace fs = std::filesystem;
@@ -166,6 +167,28 @@ int main(int argc, char** argv) {
       {0, {-71.18, -12.3, 13.3}, lookAtRotation({-71.18, -12.3, 13.3}, {0, 0, 0}, {0, 0, 1})},
       {0.04, {-69.2, -11.5, 13.3}, lookAtRotation({-69.2, -11.5, 13.3}, {0, 0, 1}, {0, 0, 1})}};
   put("walkthrough", "formatted.path", formatWalkthrough(w));
+
+  // Protocol messages, behind the target's selector byte (even: Job).
+  auto message = [](uint8_t selector, std::vector<uint8_t> bytes) {
+    bytes.insert(bytes.begin(), selector);
+    return bytes;
+  };
+  FrameJob job{3,        Camera{{1, 2, 3}, {0, 0, 0, 1}, 45, 1.5, 0.01}, 64, 48, {0, 16, 32, 16},
+               {0, 4, 9}};
+  put("protocol", "job.bin", message(0, encodeJob(job)));
+  job.flush = false;
+  put("protocol", "job-noflush.bin", message(2, encodeJob(job)));
+  SubFrame sub;
+  sub.frame = 3;
+  sub.region = {0, 0, 2, 1};
+  sub.codec = Codec::None;
+  sub.raw_size = 6;
+  sub.data = {1, 2, 3, 4, 5, 6};
+  sub.drawn = {4};
+  put("protocol", "subframe.bin", message(1, encodeSubFrames({sub})));
+  SubFrame other = sub;
+  other.region = {2, 0, 2, 1};
+  put("protocol", "batch.bin", message(3, encodeSubFrames({sub, other})));
 
   Image rgba = Image::blank(3, 2);
   for (size_t i = 0; i < rgba.rgba.size(); ++i) rgba.rgba[i] = uint8_t(i * 37);
