@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -93,13 +94,23 @@ class Assembler {
   }
 
   // Called (on the assembler thread) after each sub-frame from `client`.
-  void onSubFrame(std::function<void(int client)> f) { on_sub_frame_ = std::move(f); }
+  void onSubFrame(std::function<void(int client, uint32_t frame)> f) {
+    on_sub_frame_ = std::move(f);
+  }
 
   // Planning thread: blocks until fewer than `in_flight` frames are
   // outstanding; false when the run failed.
   bool waitForRoom(uint32_t frame) {
     std::unique_lock<std::mutex> lock(mu_);
     cv_.wait(lock, [&] { return failed_ || frame < assembled_ + uint32_t(opts_.in_flight); });
+    return !failed_;
+  }
+
+  // Planning thread: blocks until every frame before `frame` is assembled
+  // (the pipeline drained); false when the run failed.
+  bool waitAssembled(uint32_t frame) {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [&] { return failed_ || assembled_ >= frame; });
     return !failed_;
   }
 
@@ -118,7 +129,7 @@ class Assembler {
                       std::to_string(m.source));
         for (const SubFrame& sf : decodeSubFrames(m.bytes)) {
           accept(m.source, sf);
-          if (on_sub_frame_) on_sub_frame_(m.source);
+          if (on_sub_frame_) on_sub_frame_(m.source, sf.frame);
         }
       }
     } catch (const std::exception& e) {
@@ -246,7 +257,7 @@ class Assembler {
   const int clients_;
   const size_t frames_;
   FramePlanner* planner_;
-  std::function<void(int)> on_sub_frame_;
+  std::function<void(int, uint32_t)> on_sub_frame_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::map<uint32_t, FrameRecord> pending_;
@@ -277,12 +288,15 @@ class TileDispatcher {
     pump();
   }
 
-  // `client` (1-based) returned its oldest tile in flight.
-  void returned(int client) {
+  // `client` (1-based) returned a sub-frame of `frame`: its oldest tile in
+  // flight when that is one of this dealer's (clients answer in order; under
+  // --balance auto other strategies' jobs come and go between drained
+  // blocks, and theirs are not this dealer's to count).
+  void returned(int client, uint32_t frame) {
     std::lock_guard<std::mutex> lock(mu_);
-    std::deque<uint32_t>& given = given_[size_t(client - 1)];
-    if (given.empty()) return;  // the assembler rejects what was not given
-    pool_.done(client - 1, given.front());
+    auto& given = given_[size_t(client - 1)];
+    if (given.empty() || given.front().second != frame) return;
+    pool_.done(client - 1, given.front().first);
     given.pop_front();
     pump();
   }
@@ -294,7 +308,7 @@ class TileDispatcher {
         auto it = jobs_.find(id);
         assembler_.owe(it->second.frame, k + 1);
         comm_.send(k + 1, Tag::Job, encodeJob(it->second));
-        given_[size_t(k)].push_back(id);
+        given_[size_t(k)].push_back({id, it->second.frame});
         jobs_.erase(it);
       }
   }
@@ -303,8 +317,9 @@ class TileDispatcher {
   Assembler& assembler_;
   std::mutex mu_;
   TilePool pool_;
-  std::map<uint32_t, FrameJob> jobs_;        // by pool index, until sent
-  std::vector<std::deque<uint32_t>> given_;  // per client, in the order sent
+  std::map<uint32_t, FrameJob> jobs_;  // by pool index, until sent
+  // Per client: (tile, frame) in the order sent.
+  std::vector<std::deque<std::pair<uint32_t, uint32_t>>> given_;
 };
 
 // --balance auto: the median round trip of a 1 KiB message to each client,
@@ -400,22 +415,43 @@ int runServer(Comm& comm, const ServerOptions& opts) {
 
   const ViewOptions& v = opts.view;
   double near = v.near > 0 ? v.near : defaultNear(scene);
-  Balance balance = opts.balance;
-  if (balance == Balance::Auto) {
+  // --balance auto: one frame to load, then three frames of each strategy,
+  // then the fastest (BalanceTrial).
+  std::optional<BalanceTrial> trial;
+  if (opts.balance == Balance::Auto) {
     double rtt = measureRoundTripMs(comm, clients);
-    balance = chooseBalance(clients, rtt);
-    std::fprintf(stderr, "dmmr-render: --balance auto: round trip %.3f ms, %d clients: %s\n", rtt,
-                 clients, balanceName(balance));
+    trial.emplace(
+        std::vector<Balance>{Balance::Frustum, Balance::TilesStatic, Balance::TilesDynamic}, 1, 3);
+    std::fprintf(stderr,
+                 "dmmr-render: --balance auto: round trip %.3f ms to the slowest of %d "
+                 "client(s); timing each strategy on 3 frames\n",
+                 rtt, clients);
   }
   FramePlanner planner(scene);
   Assembler assembler(comm, opts, clients, path.points.size(),
                       opts.visible_weights ? &planner : nullptr, std::move(csv));
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
-  if (balance == Balance::TilesDynamic)
-    assembler.onSubFrame([&](int client) { dispatcher.returned(client); });
+  assembler.onSubFrame([&](int client, uint32_t frame) { dispatcher.returned(client, frame); });
   std::thread assembling([&] { assembler.run(); });
+  auto nowMs = [] {
+    return std::chrono::duration<double, std::milli>(Clock::now().time_since_epoch()).count();
+  };
   for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
+    uint32_t i = f - opts.from_frame;
+    if (trial && trial->boundary(i)) {
+      if (!assembler.waitAssembled(f)) break;
+      trial->blockBoundary(i, nowMs());
+      if (trial->decided()) {
+        std::string times;
+        for (size_t c = 0; c < trial->candidates().size(); ++c)
+          times += std::string(c ? ", " : "") + balanceName(trial->candidates()[c]) + " " +
+                   std::to_string(int(trial->blockMs()[c] + 0.5)) + " ms";
+        std::fprintf(stderr, "dmmr-render: --balance auto: %s per frame: %s from frame %u\n",
+                     times.c_str(), balanceName(trial->winner()), f);
+      }
+    }
     if (!assembler.waitForRoom(f)) break;
+    Balance balance = trial ? trial->strategy(i) : opts.balance;
     FrameRecord rec;
     rec.started = Clock::now();
     Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);

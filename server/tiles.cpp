@@ -108,11 +108,39 @@ bool parseBalance(const std::string& text, Balance* out) {
   return false;
 }
 
-Balance chooseBalance(int clients, double round_trip_ms) {
-  // Placeholder rule until the network benchmark decides (see the docs).
-  (void)round_trip_ms;
-  (void)clients;
-  return Balance::Frustum;
+BalanceTrial::BalanceTrial(std::vector<Balance> candidates, uint32_t warmup, uint32_t block)
+    : candidates_(std::move(candidates)),
+      warmup_(warmup),
+      block_(block),
+      block_ms_(candidates_.size(), -1.0) {
+  DMMR_CHECK(!candidates_.empty() && block >= 1);
+  winner_ = candidates_[0];
+}
+
+Balance BalanceTrial::strategy(uint32_t i) const {
+  if (decided_) return winner_;
+  if (i < warmup_) return candidates_[0];
+  size_t c = (i - warmup_) / block_;
+  return c < candidates_.size() ? candidates_[c] : winner_;
+}
+
+bool BalanceTrial::boundary(uint32_t i) const {
+  return !decided_ && i >= warmup_ && (i - warmup_) % block_ == 0 &&
+         (i - warmup_) / block_ <= candidates_.size();
+}
+
+void BalanceTrial::blockBoundary(uint32_t i, double now_ms) {
+  DMMR_CHECK(boundary(i));
+  size_t c = (i - warmup_) / block_;  // the block that starts here; c - 1 just ended
+  if (c > 0) block_ms_[c - 1] = (now_ms - started_ms_) / block_;
+  started_ms_ = now_ms;
+  if (c == candidates_.size()) {
+    size_t best = 0;
+    for (size_t k = 1; k < block_ms_.size(); ++k)
+      if (block_ms_[k] < block_ms_[best]) best = k;
+    winner_ = candidates_[best];
+    decided_ = true;
+  }
 }
 
 double linkSeconds(uint64_t bytes, const LinkModel& link, double u) {

@@ -76,16 +76,41 @@ enum class Balance : uint8_t {
   Frustum,       // DMMR's load-balanced frustum division: one region per client
   TilesStatic,   // tiles dealt up front (TileOrder); each client returns its batch
   TilesDynamic,  // tiles on demand, `window` in flight per client, returned one by one
-  Auto,          // chooseBalance decides from the clients and the measured link
+  Auto,          // BalanceTrial: each timed on a few frames, then the fastest
 };
 const char* balanceName(Balance b);
 // Parses frustum | tiles-static | tiles-dynamic | auto; false when unknown.
 bool parseBalance(const std::string& text, Balance* out);
 
-// --balance auto: picks a strategy from the client count and the link's
-// round-trip time measured at start-up (docs/benchmarks.md, "Tiles and
-// networks", has the measurements behind the rule).
-Balance chooseBalance(int clients, double round_trip_ms);
+// --balance auto: lets the frame times on the link at hand decide. After
+// `warmup` frames (the first loads geometry) each candidate renders `block`
+// frames in turn, the pipeline drained before each block so that a block's
+// time is its own; then the candidate with the least time per frame renders
+// the rest. Plain bookkeeping: the server times the blocks.
+class BalanceTrial {
+ public:
+  BalanceTrial(std::vector<Balance> candidates, uint32_t warmup, uint32_t block);
+  // The strategy for the run's frame `i` (0: the first frame rendered).
+  Balance strategy(uint32_t i) const;
+  // True when frame `i` starts a timed block (or ends the last one): the
+  // server waits for every earlier frame first, then calls blockBoundary.
+  bool boundary(uint32_t i) const;
+  // At a boundary: the time now, in ms on any steady clock.
+  void blockBoundary(uint32_t i, double now_ms);
+  bool decided() const { return decided_; }
+  Balance winner() const { return winner_; }
+  // Per candidate: ms per frame of its block (negative: not timed yet).
+  const std::vector<double>& blockMs() const { return block_ms_; }
+  const std::vector<Balance>& candidates() const { return candidates_; }
+
+ private:
+  std::vector<Balance> candidates_;
+  uint32_t warmup_, block_;
+  std::vector<double> block_ms_;
+  double started_ms_ = 0;
+  bool decided_ = false;
+  Balance winner_;
+};
 
 // A network link as a model: latency, bandwidth and jitter.
 struct LinkModel {

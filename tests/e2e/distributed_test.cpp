@@ -167,9 +167,38 @@ INSTANTIATE_TEST_SUITE_P(
         TileCase{"interleaved3", 3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
         TileCase{"onetile2", 2, "--balance tiles-static --tile 200x200"},
         TileCase{"dynamic3w1", 3, "--balance tiles-dynamic --tile 32x32 --tiles-in-flight 1"},
-        TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"},
-        TileCase{"auto2", 2, "--balance auto"}),
+        TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"}),
     [](const auto& info) { return info.param.name; });
+
+// --balance auto on a walkthrough long enough for its trial (1 + 3 x 3
+// frames): each strategy is timed, one is kept, and every frame, trial
+// frames included, equals the reference.
+TEST(TileBalance, AutoTimesEachStrategyThenKeepsTheFastestExactly) {
+  SmallScene& s = smallScene();
+  std::string path = s.dir / "long.path", ref = s.dir / "long_reference", out = s.dir / "auto";
+  Walkthrough w;
+  for (int f = 0; f < 12; ++f) {
+    Vec3d eye{-2.0 + 0.8 * f, -6.0, 3.0};
+    w.points.push_back({0.1 * f, eye, lookAtRotation(eye, {4.5, 3, 0}, {0, 0, 1})});
+  }
+  writeWalkthrough(path, w);
+  ASSERT_EQ(test::run(test::tool("dmmr-reference") + " --no-progress --width 160 --height 120" +
+                      " --scene " + s.scene + " --walkthrough " + path + " --out " + ref),
+            0);
+  int status = 0;
+  std::string log = test::runCapture(
+      "timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+          " --no-progress --width 160 --height 120 --scene " + s.scene + " --walkthrough " + path +
+          " --out " + out + " --balance auto --tile 32x32",
+      &status);
+  ASSERT_EQ(status, 0) << log;
+  EXPECT_NE(log.find("frustum "), std::string::npos) << log;
+  EXPECT_NE(log.find(" per frame: "), std::string::npos) << "no decision\n" << log;
+  EXPECT_NE(log.find("from frame 10"), std::string::npos) << log;
+  std::vector<FrameDiff> diffs = compareDirectories(ref, out);
+  ASSERT_EQ(diffs.size(), 12u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+}
 
 // A client that stops answering mid-frame under the tile strategies: the
 // server's timeout ends the run naming it, every frame before is on disk.

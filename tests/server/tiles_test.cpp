@@ -204,3 +204,45 @@ TEST(ParseBalance, NamesRoundTrip) {
   EXPECT_FALSE(parseBalance("tiles", &got));
   EXPECT_FALSE(parseBalance("Frustum", &got));
 }
+
+TEST(BalanceTrial, TimesEachCandidateOnItsBlockThenKeepsTheFastest) {
+  const std::vector<Balance> c = {Balance::Frustum, Balance::TilesStatic, Balance::TilesDynamic};
+  BalanceTrial t(c, /*warmup=*/1, /*block=*/3);
+  // Frame 0 warms up with the first candidate; frames 1-3, 4-6, 7-9 are the blocks.
+  EXPECT_EQ(t.strategy(0), Balance::Frustum);
+  EXPECT_FALSE(t.boundary(0));
+  std::vector<Balance> seen;
+  double now = 1000;
+  const double per_frame[] = {50, 20, 35};  // static is the fastest here
+  for (uint32_t i = 1; i <= 9; ++i) {
+    if (t.boundary(i)) t.blockBoundary(i, now);
+    seen.push_back(t.strategy(i));
+    now += per_frame[(i - 1) / 3];
+  }
+  EXPECT_EQ(seen, (std::vector<Balance>{Balance::Frustum, Balance::Frustum, Balance::Frustum,
+                                        Balance::TilesStatic, Balance::TilesStatic,
+                                        Balance::TilesStatic, Balance::TilesDynamic,
+                                        Balance::TilesDynamic, Balance::TilesDynamic}));
+  EXPECT_FALSE(t.decided());
+  ASSERT_TRUE(t.boundary(10));
+  t.blockBoundary(10, now);
+  ASSERT_TRUE(t.decided());
+  EXPECT_EQ(t.winner(), Balance::TilesStatic);
+  EXPECT_EQ(t.blockMs(), (std::vector<double>{50, 20, 35}));
+  for (uint32_t i = 10; i < 40; ++i) {
+    EXPECT_FALSE(t.boundary(i));
+    EXPECT_EQ(t.strategy(i), Balance::TilesStatic);
+  }
+}
+
+TEST(BalanceTrial, AWalkthroughShorterThanTheTrialStaysOnTheCandidatesInTurn) {
+  BalanceTrial t({Balance::Frustum, Balance::TilesDynamic}, 1, 2);
+  EXPECT_EQ(t.strategy(0), Balance::Frustum);
+  t.blockBoundary(1, 0);
+  EXPECT_EQ(t.strategy(2), Balance::Frustum);
+  t.blockBoundary(3, 10);
+  EXPECT_EQ(t.strategy(3), Balance::TilesDynamic);
+  EXPECT_FALSE(t.decided());
+  EXPECT_EQ(t.blockMs()[0], 5);
+  EXPECT_LT(t.blockMs()[1], 0) << "not timed yet";
+}
