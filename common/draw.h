@@ -120,7 +120,7 @@ class Renderer {
   GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
   Camera camera_;
   Mat4d view_rotation_;
-  GLint u_bound_ = -1, u_id_bound_ = -1, u_box_bound_ = -1;
+  GLint u_bound_ = -1, u_id_bound_ = -1;
   Mat4d cameraRelative(const Mat4d& object_to_world) const;
   // Uploads `box`'s entry-depth planes for the current camera (an invalid
   // box: no bound) to the current program's u_bound.
