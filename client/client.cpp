@@ -6,12 +6,14 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <future>
 #include <iterator>
 #include <memory>
 #include <mutex>
 #include <thread>
 
+#include "depth_pyramid.h"
 #include "draw.h"
 #include "error.h"
 #include "gpu_cache.h"
@@ -35,6 +37,8 @@ struct VisibleJob {
   std::vector<uint32_t> visible;
   ClientStats stats;
   Clock::time_point ready;  // when the visibility stage finished it
+  bool culled = false;      // the visibility stage culled `visible` from the job's list
+  bool fused = false;       // the render stage culls (fused stages)
 };
 
 // Test hook: DMMR_INJECT_FAULT=STAGE:FRAME[:HOW] (STAGE visibility or
@@ -75,71 +79,50 @@ struct GlStage {
   GpuCache meshes;
 };
 
-class VisibilityStage {
+// What culling decided for one job, and what the deciding cost.
+struct Decision {
+  std::vector<uint32_t> visible;  // ascending: the render stage draws these
+  size_t occluders = 0, tested = 0;
+  double prepare_ms = 0;   // occluder pass, tests (queries issued, or boxes on the CPU)
+  double retrieve_ms = 0;  // query results, or the depth read back
+  double redraw_ms = 0;    // fused: the pixels newly visible objects may reach, drawn again
+  uint64_t triangles = 0;  // fused: of the objects drawn, each counted once
+};
+
+// Draws one object, returns its triangles (0: unreadable, skipped).
+using DrawFn = std::function<uint64_t(uint32_t)>;
+
+// The visibility state of one client over a walkthrough, and the tests, on
+// the GL stage it is given: the visibility stage's context (split stages) or
+// the render stage's (fused).
+class Culler {
  public:
-  VisibilityStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
-      : scene_(scene),
-        host_(host),
-        opts_(opts.visibility),
-        prefetch_(opts.cache.prefetch),
-        gl_(scene, host, opts.visibility_context, opts.view, opts.cache),
-        marked_until_(scene.objects.size(), 0) {}
+  Culler(const Scene& scene, const VisibilityOptions& opts, GlStage& gl)
+      : scene_(scene), opts_(opts), gl_(gl), marked_until_(scene.objects.size(), 0) {}
 
-  VisibleJob run(FrameJob job) {
-    injectFault("visibility", job.frame);
-    gl_.meshes.nextFrame();
-    GpuCacheStats before = gl_.meshes.stats();
-    VisibleJob out = decide(std::move(job));
-    addGpuStats(out.stats, before, gl_.meshes.stats());
-    // Prefetch what the render stage will draw (it is a frame behind), so
-    // its disk reads overlap this stage's and that stage's work.
-    std::vector<uint32_t> geometries;
-    geometries.reserve(out.visible.size());
-    for (uint32_t o : out.visible) geometries.push_back(scene_.objects[o].geometry);
-    if (prefetch_) host_.prefetch(geometries, /*urgent=*/true);
-    return out;
-  }
-
- private:
-  VisibleJob decide(FrameJob job) {
-    VisibleJob out;
-    out.stats.objects = job.objects.size();
-    if (!opts_.enabled) {  // no culling: the render stage draws the whole list
-      out.visible = job.objects;
-      out.stats.visible = out.visible.size();
-      out.job = std::move(job);
-      return out;
-    }
+  // Split stages: occluders into depth, every candidate tested against it,
+  // a second pass where objects passed that were not occluders.
+  Decision decide(const FrameJob& job) {
+    Decision d;
     auto t0 = Clock::now();
     startFrame(job.frame);
-    static const std::vector<uint32_t> kNone;
-    const auto& potential =
-        opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
-    VisibilityPlan plan =
-        planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
+    VisibilityPlan plan = planFor(job);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
     for (uint32_t o : plan.occluders) drawDepth(o);
-    // Queries: every object not marked, occluders included (an occluder hidden
-    // by other occluders need not be drawn; one that shows passes against its
-    // own depth, since its widened box lies in front of it). Hierarchically:
-    // runs of consecutive candidates (object indices follow the skeleton's
-    // pre-order, so runs are spatially coherent) are tested by their union
-    // box first, and only the runs that pass are split and tested again. A
-    // union box encloses its members' boxes, so a run that fails hides them
-    // all. Boxes that reach the near plane are never queried: they pass.
-    // Occluders still marked from an earlier pass are taken without a query,
-    // like every marked object: the paper's n frames.
+    // Every object not marked is tested, occluders included (an occluder
+    // hidden by other occluders need not be drawn; one that shows passes
+    // against its own depth, since its widened box lies in front of it).
+    // Occluders still marked from an earlier pass are taken untested, like
+    // every marked object: the paper's n frames.
     std::vector<uint32_t> candidates, taken = plan.marked;
     for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
       (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
-    QueryTally tally;
-    std::vector<uint32_t> passed = queryHierarchically(candidates, job.camera, &tally);
+    std::vector<uint32_t> passed = test(candidates, job, &d);
     // Second pass, for frames where the previous list was a poor occluder set
     // (the camera went through a wall): draw what passed and was not yet in
     // depth, and test it again against that fuller depth. Each object still
-    // passes wherever it is the front-most (its widened box lies in front of
-    // it), so the argument for exactness is unchanged.
+    // passes wherever it is the front-most, so exactness is unchanged.
     std::vector<uint32_t> fresh, kept;
     for (uint32_t o : passed)
       (std::binary_search(plan.occluders.begin(), plan.occluders.end(), o) ? kept : fresh)
@@ -147,30 +130,88 @@ class VisibilityStage {
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       std::sort(fresh.begin(), fresh.end());
       for (uint32_t o : fresh) drawDepth(o);
-      passed = queryHierarchically(fresh, job.camera, &tally);
+      passed = test(fresh, job, &d);
       passed.insert(passed.end(), kept.begin(), kept.end());
     }
-    const GlApi& gl = gl_.context->gl();
-    double retrieve = tally.retrieve_ms;
-    size_t issued = tally.issued;
-    gl.check("occlusion queries");
-    out.stats.prepare_ms = msSince(t0) - retrieve;
-    out.stats.retrieve_ms = retrieve;
+    gl_.context->gl().check("visibility tests");
+    d.prepare_ms = msSince(t0) - d.retrieve_ms;
     std::sort(passed.begin(), passed.end());
     passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
-    out.visible = mergeSorted({taken, passed});
-    visible_now_.insert(visible_now_.end(), out.visible.begin(), out.visible.end());
-    out.stats.occluders = plan.occluders.size();
-    out.stats.queried = issued;
-    out.stats.visible = out.visible.size();
-    out.job = std::move(job);
-    return out;
+    d.visible = mergeSorted({taken, passed});
+    visible_now_.insert(visible_now_.end(), d.visible.begin(), d.visible.end());
+    d.occluders = plan.occluders.size();
+    return d;
+  }
+
+  // Fused stage, on the render stage's context, the frame begun by the
+  // caller: draws the previous visible set (and the marked) in colour, reads
+  // that depth back, tests the rest of the region against it, and draws what
+  // is newly visible. Newly visible objects are drawn after objects of higher
+  // index, so where they may reach (their footprints) the pixels are cleared
+  // and drawn again in ascending order, which resolves depth ties as the
+  // reference does. `draw` draws one object. Returns what was drawn.
+  Decision drawFused(const FrameJob& job, const DrawFn& draw) {
+    Decision d;
+    startFrame(job.frame);
+    VisibilityPlan plan = planFor(job);
+    std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
+    for (uint32_t o : first) d.triangles += draw(o);
+    auto t0 = Clock::now();
+    std::vector<uint32_t> candidates;
+    for (uint32_t o : job.objects)
+      if (!(job.frame < marked_until_[o])) candidates.push_back(o);
+    std::vector<uint32_t> passed = testPyramid(candidates, job, &d);
+    std::vector<uint32_t> fresh;
+    for (uint32_t o : passed)
+      if (!std::binary_search(first.begin(), first.end(), o)) fresh.push_back(o);
+    d.prepare_ms = msSince(t0) - d.retrieve_ms;
+    std::vector<uint32_t> drawn = mergeSorted({first, fresh});
+    if (!fresh.empty()) {
+      auto tr = Clock::now();
+      std::vector<Rect> rects;
+      for (uint32_t o : fresh) rects.push_back(footprint(o, job));
+      std::vector<char> counted(fresh.size(), 0);
+      for (const Rect& rect : coverRects(std::move(rects), kMaxRedrawRects)) {
+        gl_.renderer.beginRedraw(rect);
+        for (uint32_t o : drawn) {
+          if (!overlaps(footprint(o, job), rect)) continue;
+          uint64_t t = draw(o);
+          auto f = std::lower_bound(fresh.begin(), fresh.end(), o);
+          if (f != fresh.end() && *f == o && !counted[size_t(f - fresh.begin())]++)
+            d.triangles += t;
+        }
+      }
+      d.redraw_ms = msSince(tr);
+    }
+    passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
+    std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
+    visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
+    d.occluders = first.size();
+    d.visible = std::move(drawn);
+    return d;
+  }
+
+  // The cost model turned culling off for this job: everything is drawn,
+  // and the region's objects are the next frame's occluders.
+  void skip(const FrameJob& job) {
+    startFrame(job.frame);
+    visible_now_.insert(visible_now_.end(), job.objects.begin(), job.objects.end());
+  }
+
+ private:
+  static constexpr size_t kMaxRedrawRects = 16;
+
+  VisibilityPlan planFor(const FrameJob& job) const {
+    static const std::vector<uint32_t> kNone;
+    const auto& potential =
+        opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
+    return planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
   }
 
   // A frame can come as several jobs (tiles): what they found visible is the
-  // next frame's occluder set, and what passed a query is marked from the
-  // next frame on, so a frame's later tiles are not handed its earlier
-  // tiles' objects unqueried.
+  // next frame's occluder set, and what passed a test is marked from the next
+  // frame on, so a frame's later tiles are not handed its earlier tiles'
+  // objects untested.
   void startFrame(uint32_t frame) {
     if (frame == frame_) return;
     for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
@@ -186,17 +227,73 @@ class VisibilityStage {
       gl_.renderer.drawDepth(*mesh, o.transform, o.box, opts_.occluder_lod);
   }
 
-  struct QueryTally {
-    size_t issued = 0;
-    double retrieve_ms = 0;
-  };
+  std::vector<uint32_t> test(const std::vector<uint32_t>& candidates, const FrameJob& job,
+                             Decision* d) {
+    if (opts_.method == VisibilityMethod::Queries)
+      return queryHierarchically(candidates, job.camera, d);
+    return testPyramid(candidates, job, d);
+  }
 
-  // Tests `candidates` (ascending) against the depth drawn so far: runs of
-  // consecutive objects by their union box, in rounds of decreasing run size
-  // (options' run_sizes, ending at 1); returns those that pass. Boxes
-  // reaching the near plane are not queried: they pass.
+  // The object's conservative footprint and nearest depth (its query box's).
+  ScreenBound bound(uint32_t object, const Camera& camera) const {
+    const Box3d& box = scene_.objects[object].box;
+    const Renderer& r = gl_.renderer;
+    if (!box.valid()) return ScreenBound{true};  // no box, no bound: it shows
+    return screenBound(queryBoxBounds(box, camera, r.height()), camera, r.width(), r.height());
+  }
+
+  // The pixels of the region the object may cover.
+  Rect footprint(uint32_t object, const FrameJob& job) const {
+    ScreenBound b = bound(object, job.camera);
+    if (b.reaches_near) return job.region;
+    Rect r{std::max(b.x0, job.region.x), std::max(b.y0, job.region.y), 0, 0};
+    r.w = std::min(b.x1 + 1, job.region.x1()) - r.x;
+    r.h = std::min(b.y1 + 1, job.region.y1()) - r.y;
+    return r.empty() ? Rect{} : r;
+  }
+
+  // Reads the depth drawn so far back once and tests `candidates`
+  // (ascending) on the CPU against its farthest-depth pyramid, in rounds of
+  // runs of consecutive objects like the queries (a run's bound is the union
+  // of its members', so a hidden run hides them all). Returns those that may
+  // show.
+  std::vector<uint32_t> testPyramid(const std::vector<uint32_t>& candidates, const FrameJob& job,
+                                    Decision* d) {
+    auto tr = Clock::now();
+    gl_.renderer.readDepth(job.region, &depth_);
+    d->retrieve_ms += msSince(tr);
+    pyramid_.build(depth_.data(), job.region);
+    bounds_.resize(candidates.size());
+    for (size_t i = 0; i < candidates.size(); ++i) bounds_[i] = bound(candidates[i], job.camera);
+    std::vector<uint32_t> passed;
+    std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
+    for (uint32_t size : opts_.run_sizes) {
+      next.clear();
+      for (auto [begin, end] : runs)
+        for (size_t b = begin; b < end; b += size) {
+          size_t e = std::min(end, b + size);
+          ScreenBound u = bounds_[b];
+          for (size_t k = b + 1; k < e; ++k) u = unite(u, bounds_[k]);
+          ++d->tested;
+          if (pyramid_.hides(u)) continue;
+          if (e - b == 1)
+            passed.push_back(candidates[b]);
+          else
+            next.push_back({b, e});
+        }
+      runs.swap(next);
+    }
+    return passed;
+  }
+
+  // Tests `candidates` (ascending) against the depth drawn so far with
+  // hardware occlusion queries: runs of consecutive objects (object indices
+  // follow the skeleton's pre-order, so runs are spatially coherent) by
+  // their union box, in rounds of decreasing run size (run_sizes, ending at
+  // 1); returns those that pass. Boxes reaching the near plane are not
+  // queried: they pass.
   std::vector<uint32_t> queryHierarchically(const std::vector<uint32_t>& candidates,
-                                            const Camera& camera, QueryTally* tally) {
+                                            const Camera& camera, Decision* d) {
     Renderer& r = gl_.renderer;
     const GlApi& gl = gl_.context->gl();
     GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
@@ -223,7 +320,7 @@ class VisibilityStage {
           asked.push_back({b, e});
         }
       r.endQueries();
-      tally->issued += asked.size();
+      d->tested += asked.size();
       auto tq = Clock::now();
       for (size_t i = 0; i < asked.size(); ++i) {
         GLuint samples = 0;
@@ -236,7 +333,7 @@ class VisibilityStage {
         else
           next.push_back(asked[i]);
       }
-      tally->retrieve_ms += msSince(tq);
+      d->retrieve_ms += msSince(tq);
       runs.swap(next);
     }
     return passed;
@@ -249,25 +346,129 @@ class VisibilityStage {
   }
 
   const Scene& scene_;
-  HostCache& host_;
   VisibilityOptions opts_;
-  bool prefetch_;
-  GlStage gl_;
+  GlStage& gl_;
   std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
-  std::vector<uint32_t> marked_until_;              // per object: first frame to query again
+  std::vector<uint32_t> marked_until_;              // per object: first frame to test again
   uint32_t frame_ = UINT32_MAX;                     // the frame of the jobs being decided
   std::vector<uint32_t> visible_now_, passed_now_;  // this frame's, over its jobs
   std::vector<GLuint> queries_;
+  std::vector<float> depth_;
+  DepthPyramid pyramid_;
+  std::vector<ScreenBound> bounds_;
+};
+
+// The cost model of a client, shared by its stages: the visibility stage
+// asks whether to cull, the render stage, which knows what drawing cost,
+// records.
+class SharedGovernor {
+ public:
+  explicit SharedGovernor(bool enabled) : enabled_(enabled) {}
+  bool culls() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return !enabled_ || g_.culls();
+  }
+  void record(bool culled, const CullCost& c) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!enabled_) return;
+    if (culled)
+      g_.culled(c);
+    else
+      g_.unculled();
+  }
+
+ private:
+  bool enabled_;
+  std::mutex mu_;
+  CullingGovernor g_;
+};
+
+uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& objects) {
+  uint64_t n = 0;
+  for (uint32_t o : objects) n += scene.objects[o].weight;
+  return n;
+}
+
+class VisibilityStage {
+ public:
+  VisibilityStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
+                  SharedGovernor& governor)
+      : scene_(scene),
+        host_(host),
+        opts_(opts.visibility),
+        prefetch_(opts.cache.prefetch),
+        governor_(governor) {
+    // Fused stages cull on the render stage's context: this one only passes
+    // jobs on.
+    if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
+      gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache);
+      culler_ = std::make_unique<Culler>(scene, opts_, *gl_);
+    }
+  }
+
+  VisibleJob run(FrameJob job) {
+    injectFault("visibility", job.frame);
+    VisibleJob out;
+    out.stats.objects = job.objects.size();
+    if (!culler_) {  // no culling here: the render stage gets the whole list
+      out.fused = opts_.method != VisibilityMethod::Off;
+      out.visible = job.objects;
+      out.stats.visible = out.visible.size();
+      out.job = std::move(job);
+      return out;
+    }
+    if (!governor_.culls()) {
+      culler_->skip(job);
+      out.visible = job.objects;
+      out.stats.visible = out.visible.size();
+      out.job = std::move(job);
+      return out;
+    }
+    gl_->meshes.nextFrame();
+    GpuCacheStats before = gl_->meshes.stats();
+    Decision d = culler_->decide(job);
+    addGpuStats(out.stats, before, gl_->meshes.stats());
+    out.culled = true;
+    out.visible = std::move(d.visible);
+    out.stats.prepare_ms = d.prepare_ms;
+    out.stats.retrieve_ms = d.retrieve_ms;
+    out.stats.occluders = d.occluders;
+    out.stats.queried = d.tested;
+    out.stats.visible = out.visible.size();
+    out.job = std::move(job);
+    // Prefetch what the render stage will draw (it is a frame behind), so
+    // its disk reads overlap this stage's and that stage's work.
+    std::vector<uint32_t> geometries;
+    geometries.reserve(out.visible.size());
+    for (uint32_t o : out.visible) geometries.push_back(scene_.objects[o].geometry);
+    if (prefetch_) host_.prefetch(geometries, /*urgent=*/true);
+    return out;
+  }
+
+ private:
+  const Scene& scene_;
+  HostCache& host_;
+  VisibilityOptions opts_;
+  bool prefetch_;
+  SharedGovernor& governor_;
+  std::unique_ptr<GlStage> gl_;
+  std::unique_ptr<Culler> culler_;
 };
 
 class RenderStage {
  public:
-  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
+  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
+              SharedGovernor& governor)
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
         gl_(scene, host, opts.render_context, opts.view, opts.cache),
-        host_before_(host.stats()) {}
+        governor_(governor),
+        host_before_(host.stats()) {
+    if (opts.visibility.method != VisibilityMethod::Off &&
+        opts.visibility.stages != StageMode::Split)
+      culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
+  }
 
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
@@ -284,15 +485,31 @@ class RenderStage {
     auto t0 = Clock::now();
     Renderer& r = gl_.renderer;
     r.beginFrame(job.camera, job.region);
-    for (uint32_t index : v.visible) {  // ascending, as the reference draws
+    auto draw = [&](uint32_t index) -> uint64_t {
       const ObjectBounds& o = scene_.objects[index];
       auto tl = Clock::now();
       const GpuMesh* mesh = gl_.meshes.acquire(o.geometry);
       st.load_ms += msSince(tl);
-      if (!mesh) continue;  // unreadable geometry: skipped, counted
+      if (!mesh) return 0;  // unreadable geometry: skipped, counted
       r.draw(*mesh, o.transform, o.box, gl_.meshes.textures());
-      st.triangles += mesh->triangles;
+      return mesh->triangles;
+    };
+    bool culled = v.culled;
+    Decision fused;
+    if (v.fused && governor_.culls()) {
+      fused = culler_->drawFused(job, draw);
+      culled = true;
+      st.prepare_ms = fused.prepare_ms;
+      st.retrieve_ms = fused.retrieve_ms;
+      st.occluders = fused.occluders;
+      st.queried = fused.tested;
+      st.visible = fused.visible.size();
+      st.triangles = fused.triangles;
+    } else {
+      if (v.fused) culler_->skip(job);
+      for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
     }
+    const std::vector<uint32_t>& drawn = v.fused && culled ? fused.visible : v.visible;
     r.finish();
     addGpuStats(st, gpu_before, gl_.meshes.stats());
     // The host levels are shared by both stages; each sub-frame reports
@@ -305,7 +522,14 @@ class RenderStage {
     st.skipped = h.skipped - host_before_.skipped;
     st.ram_resident = h.resident;
     host_before_ = h;
-    st.render_ms = msSince(t0) - st.load_ms;
+    double culling = v.fused && culled ? fused.prepare_ms + fused.retrieve_ms : 0;
+    st.render_ms = msSince(t0) - st.load_ms - culling;
+    // Deciding cost: the visibility stage's work, or the fused stage's
+    // readback, tests and redraws.
+    governor_.record(culled, CullCost{v.fused ? culling + fused.redraw_ms
+                                              : v.stats.prepare_ms + v.stats.retrieve_ms,
+                                      st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
+                                      regionTriangles(scene_, job.objects)});
     auto tr = Clock::now();
     std::vector<uint8_t> rgba, rgb;
     r.readPixels(job.region, &rgba);
@@ -321,7 +545,7 @@ class RenderStage {
     st.bytes_raw = rgb.size();
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
-    out.drawn = v.visible;  // lets the server weigh the next frames by what shows
+    out.drawn = drawn;  // lets the server weigh the next frames by what shows
     return out;
   }
 
@@ -332,6 +556,8 @@ class RenderStage {
   HostCache& host_;
   Codec codec_;
   GlStage gl_;
+  SharedGovernor& governor_;
+  std::unique_ptr<Culler> culler_;
   HostCacheStats host_before_;
   double last_send_ms_ = 0;
 };
@@ -403,6 +629,7 @@ int runClient(Comm& comm, const ClientOptions& opts) {
     problem = e.what();
   }
 
+  SharedGovernor governor(opts.visibility.governor);
   BoundedQueue<FrameJob> jobs(2);
   BoundedQueue<VisibleJob> visible(2);
   FailureReport failure(comm);
@@ -440,10 +667,11 @@ int runClient(Comm& comm, const ClientOptions& opts) {
   std::thread visThread, renderThread;
   if (problem.empty()) {
     visThread = startStage<VisibilityStage>(
-        [&] { return std::make_unique<VisibilityStage>(scene, *host, opts); }, visLoop, &visReady);
-    renderThread =
-        startStage<RenderStage>([&] { return std::make_unique<RenderStage>(scene, *host, opts); },
-                                renderLoop, &renderReady);
+        [&] { return std::make_unique<VisibilityStage>(scene, *host, opts, governor); }, visLoop,
+        &visReady);
+    renderThread = startStage<RenderStage>(
+        [&] { return std::make_unique<RenderStage>(scene, *host, opts, governor); }, renderLoop,
+        &renderReady);
     for (auto* ready : {&visReady, &renderReady}) {
       std::string p = ready->get_future().get();
       if (!p.empty() && problem.empty()) problem = p;

@@ -48,4 +48,26 @@ bool boxReachesNearPlane(const Box3d& box, const Camera& camera, int height) {
   return length(nearest - e) <= reach;
 }
 
+double CullingGovernor::net(const CullCost& c) {
+  if (c.drawn_triangles == 0) return c.region_triangles > 0 ? INFINITY : -c.decide_ms;
+  double all = c.draw_ms * double(c.region_triangles) / double(c.drawn_triangles);
+  return all - c.draw_ms - c.decide_ms;
+}
+
+void CullingGovernor::culled(const CullCost& c) {
+  if (net(c) >= 0) {
+    bad_ = 0;
+    off_len_ = min_off_;
+    return;
+  }
+  if (++bad_ < patience_) return;
+  bad_ = patience_ - 1;  // after the pause, one bad frame turns it off again
+  off_left_ = off_len_;
+  off_len_ = std::min(max_off_, off_len_ * 2);
+}
+
+void CullingGovernor::unculled() {
+  if (off_left_ > 0) --off_left_;
+}
+
 }  // namespace dmmr

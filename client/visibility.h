@@ -19,8 +19,22 @@
 
 namespace dmmr {
 
+// How the visibility stage tests candidate boxes against the occluders'
+// depth: hardware occlusion queries (the DMMR paper's method), or the depth
+// read back once per pass and tested on the CPU (depth_pyramid.h).
+enum class VisibilityMethod { Off, Queries, Pyramid };
+// Two contexts and threads (the paper's visibility and render stages), or
+// one context that draws last frame's visible set in colour, tests the rest
+// against that depth and draws what is newly visible (`fused`); `auto` times
+// both on the walkthrough's first frames and keeps the faster.
+enum class StageMode { Split, Fused, Auto };
+
 struct VisibilityOptions {
-  bool enabled = true;
+  VisibilityMethod method = VisibilityMethod::Pyramid;
+  StageMode stages = StageMode::Split;
+  // Let the cost model (CullingGovernor) turn culling off while it does not
+  // pay. Never changes a pixel.
+  bool governor = true;
   // Samples a box must pass to count as visible; 0 means any sample.
   // Anything above 0 is an approximation.
   uint32_t query_threshold = 0;
@@ -67,5 +81,37 @@ std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& list
 // query on it would be clipped away and prove nothing.
 // `height`: the frame's, for the query box's pixel margin (queryBoxBounds).
 bool boxReachesNearPlane(const Box3d& box, const Camera& camera, int height);
+
+// Whether culling pays, from the client's own measurements: a cost model in
+// the spirit of Guthe et al. 2006 ("Near optimal hierarchical culling"). A
+// culled frame costs its deciding (occluder pass, depth readback or query
+// results, tests, redraws) on top of drawing what shows; brute force would
+// have drawn every triangle of the region. When the estimated saving,
+// draw time scaled to the region's triangles, stays below the deciding cost
+// for `patience` culled frames in a row, culling stops for a while (doubling
+// each time it turns out not to pay again) and is then tried again for one
+// frame. Pure; the caller decides what "frame" is (a job).
+struct CullCost {
+  double decide_ms = 0;  // the visibility work of the frame
+  double draw_ms = 0;    // drawing what was drawn
+  uint64_t drawn_triangles = 0;
+  uint64_t region_triangles = 0;  // every object of the region's list
+};
+class CullingGovernor {
+ public:
+  explicit CullingGovernor(uint32_t min_off = 8, uint32_t max_off = 128, uint32_t patience = 3)
+      : min_off_(min_off), max_off_(max_off), patience_(patience), off_len_(min_off) {}
+  bool culls() const { return off_left_ == 0; }
+  // After a frame that culled.
+  void culled(const CullCost& c);
+  // After a frame that did not.
+  void unculled();
+  // Estimated ms the frame's culling saved (negative: it cost).
+  static double net(const CullCost& c);
+
+ private:
+  uint32_t min_off_, max_off_, patience_;
+  uint32_t off_len_, off_left_ = 0, bad_ = 0;
+};
 
 }  // namespace dmmr

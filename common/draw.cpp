@@ -491,6 +491,24 @@ void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
   gl_.check("readPixels");
 }
 
+void Renderer::readDepth(const Rect& region, std::vector<float>* depth) {
+  depth->resize(size_t(region.area()));
+  gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_DEPTH_COMPONENT, GL_FLOAT,
+                 depth->data());
+  gl_.check("readDepth");
+}
+
+void Renderer::beginRedraw(const Rect& rect, Rgb bg) {
+  gl_.Scissor(rect.x, rect.y, rect.w, rect.h);
+  gl_.DepthMask(GL_TRUE);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl_.ClearColor(bg.r, bg.g, bg.b, 1.f);
+  gl_.ClearDepth(0.0);
+  gl_.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  gl_.UseProgram(program_);
+}
+
 void Renderer::finish() {
   gl_.Finish();
 }

@@ -107,6 +107,13 @@ class Renderer {
             const std::vector<GLuint>& textures);
   // Reads `region` as RGBA8, bottom row first (GL order).
   void readPixels(const Rect& region, std::vector<uint8_t>* rgba);
+  // Reads `region`'s depth (reversed-Z floats, exactly as stored), bottom row
+  // first: the depth-pyramid test's input.
+  void readDepth(const Rect& region, std::vector<float>* depth);
+  // Clears `rect` (colour and depth) and restricts the draws that follow to
+  // it, keeping the camera and program of the frame: the fused stage's
+  // redraw of the pixels newly visible objects may reach.
+  void beginRedraw(const Rect& rect, Rgb background = {});
   void finish();
 
  private:

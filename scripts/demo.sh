@@ -16,7 +16,7 @@ tris=${DMMR_DEMO_TRIANGLES:-1000000}
 size=${DMMR_DEMO_SIZE:-1024}
 bin=build/bin
 path=walkthroughs/demo-plant.path
-mpi=(mpirun --oversubscribe -np 3)
+mpi=(mpirun --oversubscribe --bind-to none -np 3)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 
 rm -rf "$out"

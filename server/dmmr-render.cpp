@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "affinity.h"
 #include "cli_options.h"
 #include "client.h"
 #include "error.h"
@@ -27,7 +28,20 @@ int main(int argc, char** argv) {
                  "EGL device of the visibility context (-1: surfaceless)");
   app.add_option("--render-egl-device", renderDevice,
                  "EGL device of the render context (-1: surfaceless)");
-  app.add_option("--visibility", visibility, "occlusion culling on the clients: on or off")
+  app.add_option("--visibility", visibility,
+                 "occlusion culling on the clients: pyramid (depth read back, boxes tested on "
+                 "the CPU; on is the same), queries (hardware occlusion queries) or off")
+      ->check(CLI::IsMember({"on", "pyramid", "queries", "off"}));
+  std::string stages = "split";
+  app.add_option("--stages", stages,
+                 "split (visibility and render stage on two contexts and threads) or fused "
+                 "(one context: last frame's visible set drawn in colour, the rest tested "
+                 "against its depth; needs --visibility pyramid)")
+      ->check(CLI::IsMember({"split", "fused"}));
+  std::string costModel = "on";
+  app.add_option("--cost-model", costModel,
+                 "on: a client stops culling for a while when its measurements say culling "
+                 "does not pay (never changes a pixel); off: always cull")
       ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--query-threshold", c.visibility.query_threshold,
                  "samples a query must pass (0: any; above 0 approximates)");
@@ -88,7 +102,16 @@ int main(int argc, char** argv) {
   c.view = s.view;
   c.visibility_context = {dmmr::parseBackend(backend), visDevice};
   c.render_context = {dmmr::parseBackend(backend), renderDevice};
-  c.visibility.enabled = visibility == "on";
+  c.visibility.method = visibility == "off"       ? dmmr::VisibilityMethod::Off
+                        : visibility == "queries" ? dmmr::VisibilityMethod::Queries
+                                                  : dmmr::VisibilityMethod::Pyramid;
+  c.visibility.stages = stages == "fused" ? dmmr::StageMode::Fused : dmmr::StageMode::Split;
+  c.visibility.governor = costModel == "on";
+  if (c.visibility.stages == dmmr::StageMode::Fused &&
+      c.visibility.method == dmmr::VisibilityMethod::Queries) {
+    if (!quiet) std::fprintf(stderr, "dmmr-render: --stages fused needs --visibility pyramid\n");
+    return 1;
+  }
   s.visible_weights = weights == "visible";
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
@@ -108,6 +131,11 @@ int main(int argc, char** argv) {
   int status = 0;
   try {
     dmmr::Comm comm(&argc, &argv);
+    if (comm.rank() != 0) {
+      const int wanted = 2;  // the two GL stages' threads
+      std::string warning = dmmr::placementWarning(comm.rank(), dmmr::allowedCpuCount(), wanted);
+      if (!warning.empty()) std::fprintf(stderr, "%s\n", warning.c_str());
+    }
     try {
       status = comm.rank() == 0 ? dmmr::runServer(comm, s) : dmmr::runClient(comm, c);
     } catch (const std::exception& e) {

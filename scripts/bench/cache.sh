@@ -10,7 +10,7 @@ bin=build/bin
 out=out/bench/cache
 size=${DMMR_BENCH_SIZE:-512}
 clients=${DMMR_BENCH_CLIENTS:-1}
-mpi=(mpirun --oversubscribe -np $((clients + 1)))
+mpi=(mpirun --oversubscribe --bind-to none -np $((clients + 1)))
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 mkdir -p "$out"
 

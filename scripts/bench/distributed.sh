@@ -7,7 +7,7 @@ cd "$(dirname "$0")/../.."
 bin=build/bin
 out=out/bench
 size=${DMMR_BENCH_SIZE:-1024}
-mpi=(mpirun --oversubscribe)
+mpi=(mpirun --oversubscribe --bind-to none)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 mkdir -p "$out"
 [ -f "$out/plants8.osgb" ] || $bin/dmmr-scenegen replicate --of plant --copies 8 --triangles 1250000 \

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/../.."
 bin=build/bin
 out=out/bench/vis
 size=${DMMR_BENCH_SIZE:-512}
-mpi=(mpirun --oversubscribe -np 2)
+mpi=(mpirun --oversubscribe --bind-to none -np 2)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 mkdir -p "$out"
 

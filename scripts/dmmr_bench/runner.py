@@ -53,7 +53,7 @@ class Runner:
         lp = self.run_cfg.get("lp_num_threads")
         if lp:
             self.env["LP_NUM_THREADS"] = str(lp)
-        self.mpi = ["mpirun", "--oversubscribe"]
+        self.mpi = ["mpirun", "--oversubscribe", "--bind-to", "none"]
         if os.geteuid() == 0:
             self.mpi.append("--allow-run-as-root")
         if lp:

@@ -254,3 +254,59 @@ TEST(QueryBoxBounds, WidensByAnEighthOfAPixelAtTheFarSide) {
   EXPECT_NEAR(q.extent().x / 2, pixel / 8 + 1e-4 + 1e-9, 1e-12);
   EXPECT_TRUE(q.lo.z < -10 && q.hi.z > -10);
 }
+
+namespace {
+
+CullCost cost(double decide, double draw, uint64_t drawn, uint64_t region) {
+  return CullCost{decide, draw, drawn, region};
+}
+
+TEST(CullingGovernor, KeepsCullingWhileItPays) {
+  CullingGovernor g(4, 16, 3);
+  for (int f = 0; f < 100; ++f) {
+    ASSERT_TRUE(g.culls());
+    g.culled(cost(5, 10, 1000, 100000));  // saves ~990 ms for 5
+  }
+}
+
+TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
+  CullingGovernor g(4, 16, 3);
+  CullCost bad = cost(20, 100, 990, 1000);  // saves ~1 ms for 20
+  EXPECT_LT(CullingGovernor::net(bad), 0);
+  g.culled(bad);
+  g.culled(bad);
+  EXPECT_TRUE(g.culls());
+  g.culled(bad);  // the third in a row
+  std::vector<int> pauses;
+  for (int round = 0; round < 5; ++round) {
+    int off = 0;
+    while (!g.culls()) {
+      g.unculled();
+      ++off;
+    }
+    pauses.push_back(off);
+    g.culled(bad);  // the probe frame does not pay either: off again at once
+  }
+  EXPECT_EQ(pauses, (std::vector<int>{4, 8, 16, 16, 16}));
+  // A probe that pays keeps culling on and resets the pause.
+  while (!g.culls()) g.unculled();
+  g.culled(cost(1, 10, 10, 100000));
+  EXPECT_TRUE(g.culls());
+  g.culled(bad);
+  g.culled(bad);
+  EXPECT_TRUE(g.culls());
+  g.culled(bad);
+  int off = 0;
+  while (!g.culls()) {
+    g.unculled();
+    ++off;
+  }
+  EXPECT_EQ(off, 4);
+}
+
+TEST(CullingGovernor, ANothingDrawnFramePaysWhenTheRegionHadTriangles) {
+  EXPECT_GT(CullingGovernor::net(cost(3, 0, 0, 5000)), 0);
+  EXPECT_LT(CullingGovernor::net(cost(3, 0, 0, 0)), 0);
+}
+
+}  // namespace

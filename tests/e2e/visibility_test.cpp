@@ -15,6 +15,7 @@
 #include <osgDB/WriteFile>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "compare.h"
@@ -112,13 +113,17 @@ int64_t differingPixels(const std::string& reference, const std::string& out, si
 
 }  // namespace
 
-class VisibilityStage : public testing::TestWithParam<int> {};
+// Every visibility method and stage mode (docs/architecture.md).
+const char* const kModes[] = {"--visibility queries", "--visibility pyramid",
+                              "--visibility pyramid --stages fused"};
+
+class VisibilityStage : public testing::TestWithParam<std::tuple<int, const char*>> {};
 
 TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
   PlantScene& s = plant();
-  int clients = GetParam();
-  std::string out = s.dir / ("fly" + std::to_string(clients));
-  ASSERT_EQ(s.render(clients, s.fly, out, "--stats " + out + ".csv"), 0);
+  auto [clients, mode] = GetParam();
+  std::string out = s.dir / ("fly" + std::to_string(clients) + test::slug(mode));
+  ASSERT_EQ(s.render(clients, s.fly, out, std::string(mode) + " --stats " + out + ".csv"), 0);
 
   std::vector<FrameDiff> diffs = compareDirectories(s.fly_reference, out);
   ASSERT_EQ(diffs.size(), kFlyFrames);
@@ -151,7 +156,12 @@ TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
   for (int k = 1; k <= clients; ++k) EXPECT_GT(queried[size_t(k)], 0) << "client " << k;
 }
 
-INSTANTIATE_TEST_SUITE_P(Clients, VisibilityStage, testing::Values(1, 3));
+INSTANTIATE_TEST_SUITE_P(ClientsAndModes, VisibilityStage,
+                         testing::Combine(testing::Values(1, 3), testing::ValuesIn(kModes)),
+                         [](const auto& info) {
+                           return std::to_string(std::get<0>(info.param)) + "clients" +
+                                  test::slug(std::get<1>(info.param));
+                         });
 
 TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
   // The counterpart of the culling check above: without the stage the
@@ -170,13 +180,16 @@ TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
 }
 
 TEST(VisibilityStageOrbit, OutsideViewIsExact) {
-  // From outside, the plant's walls hide most of it: many queries fail.
+  // From outside, the plant's walls hide most of it: many tests fail.
   PlantScene& s = plant();
-  std::string out = s.dir / "orbit";
-  ASSERT_EQ(s.render(2, s.orbit, out), 0);
-  std::vector<FrameDiff> diffs = compareDirectories(s.orbit_reference, out);
-  ASSERT_EQ(diffs.size(), kOrbitFrames);
-  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+  for (const char* mode : kModes) {
+    std::string out = s.dir / ("orbit" + test::slug(mode));
+    ASSERT_EQ(s.render(2, s.orbit, out, mode), 0);
+    std::vector<FrameDiff> diffs = compareDirectories(s.orbit_reference, out);
+    ASSERT_EQ(diffs.size(), kOrbitFrames);
+    for (const FrameDiff& d : diffs)
+      EXPECT_EQ(d.diff.differing_pixels, 0) << mode << " " << d.name << " " << d.diff;
+  }
 }
 
 TEST(VisibilityStageApproximate, ThresholdAndKeepFramesComplete) {
@@ -238,13 +251,15 @@ TEST(VisibilityHardCases, CameraInsideObjectsAndThroughAWallIsExact) {
                            o.out + " --walkthrough " + path + " --out " + ref,
                        &status);
   ASSERT_EQ(status, 0) << log;
-  for (int clients : {1, 3}) {
-    std::string out = dir / ("room" + std::to_string(clients));
-    log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+  for (const char* mode : kModes)
+    for (int clients : {1, 3}) {
+      std::string out = dir / ("room" + std::to_string(clients) + test::slug(mode));
+      log =
+          test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
                                test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
-                               o.out + " --walkthrough " + path + " --out " + out,
+                               o.out + " --walkthrough " + path + " --out " + out + " " + mode,
                            &status);
-    ASSERT_EQ(status, 0) << log;
-    EXPECT_EQ(differingPixels(ref, out, 10), 0) << clients << " clients";
-  }
+      ASSERT_EQ(status, 0) << log;
+      EXPECT_EQ(differingPixels(ref, out, 10), 0) << clients << " clients, " << mode;
+    }
 }

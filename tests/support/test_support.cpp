@@ -1,4 +1,5 @@
 #include "test_support.h"
+#include <cctype>
 
 #include <fstream>
 #include <sstream>
@@ -35,13 +36,20 @@ std::string tool(const std::string& name) {
 }
 
 std::string mpirun(int np) {
-  std::string cmd = "mpirun --oversubscribe -np " + std::to_string(np);
+  std::string cmd = "mpirun --oversubscribe --bind-to none -np " + std::to_string(np);
   if (::geteuid() == 0) cmd += " --allow-run-as-root";
   // The sanitizer builds' settings (suppressions, halt_on_error, leak
   // checks: tests/sanitizers/) go to every rank, wherever it runs.
   for (const char* var : {"ASAN_OPTIONS", "LSAN_OPTIONS", "UBSAN_OPTIONS", "TSAN_OPTIONS"})
     if (std::getenv(var)) cmd += std::string(" -x ") + var;
   return cmd;
+}
+
+std::string slug(const std::string& text) {
+  std::string out;
+  for (char c : text)
+    if (std::isalnum(static_cast<unsigned char>(c))) out += c;
+  return out;
 }
 
 int run(const std::string& command) {

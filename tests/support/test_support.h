@@ -41,10 +41,14 @@ class TempDir {
 std::string sharedModelsDir();
 // build/bin/NAME.
 std::string tool(const std::string& name);
-// "mpirun -np N" with the flags this machine needs (--oversubscribe, and
-// --allow-run-as-root when running as root), exporting the sanitizers'
+// "mpirun -np N" with the flags this machine needs (--oversubscribe,
+// --bind-to none so that a client's GL threads are not pinned to one core,
+// and --allow-run-as-root when running as root), exporting the sanitizers'
 // *SAN_OPTIONS to the ranks when they are set.
 std::string mpirun(int np);
+// `text` with every character that is not a letter or digit dropped: a
+// test-name and file-name part made from command-line options.
+std::string slug(const std::string& text);
 // Runs a shell command; returns its exit status (-1 when it did not exit).
 int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.

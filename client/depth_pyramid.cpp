@@ -1,0 +1,169 @@
+#include "depth_pyramid.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "error.h"
+
+namespace dmmr {
+
+std::ostream& operator<<(std::ostream& os, const ScreenBound& b) {
+  if (b.reaches_near) return os << "ScreenBound{reaches near}";
+  return os << "ScreenBound{[" << b.x0 << "," << b.x1 << "]x[" << b.y0 << "," << b.y1
+            << "] nearest " << b.nearest << "}";
+}
+
+ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int height) {
+  DMMR_CHECK(box.valid() && width > 0 && height > 0);
+  Mat4d view = viewRotation(camera);
+  double f = 1.0 / std::tan(camera.fovy_deg * M_PI / 360.0), fx = f / camera.aspect;
+  ScreenBound b;
+  double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
+  double nearestDist = INFINITY;
+  for (int i = 0; i < 8; ++i) {
+    Vec3d e = view.transformVector(box.corner(i) - camera.eye);
+    double dist = -e.z;
+    // The box is convex: all corners beyond the near plane put all of it
+    // there, and its projection is the hull of the corners' projections.
+    if (!(dist > camera.near)) {
+      b.reaches_near = true;
+      return b;
+    }
+    nearestDist = std::min(nearestDist, dist);
+    double wx = (fx * e.x / dist + 1) * 0.5 * width, wy = (f * e.y / dist + 1) * 0.5 * height;
+    xmin = std::min(xmin, wx);
+    xmax = std::max(xmax, wx);
+    ymin = std::min(ymin, wy);
+    ymax = std::max(ymax, wy);
+  }
+  // Pixel i's centre is i + 0.5; a pixel of margin each side covers the
+  // corners' rounding (the query box already covers the rasteriser's).
+  auto lo = [](double v, int n) { return int(std::floor(std::clamp(v, -4.0, n + 4.0))) - 1; };
+  auto hi = [](double v, int n) { return int(std::floor(std::clamp(v, -4.0, n + 4.0))) + 1; };
+  b.x0 = std::max(0, lo(xmin, width));
+  b.x1 = std::min(width - 1, hi(xmax, width));
+  b.y0 = std::max(0, lo(ymin, height));
+  b.y1 = std::min(height - 1, hi(ymax, height));
+  // Depth = near / distance; rounded up by a relative 1e-6 for this
+  // computation's own rounding.
+  b.nearest = camera.near / nearestDist * (1 + 1e-6);
+  return b;
+}
+
+ScreenBound unite(const ScreenBound& a, const ScreenBound& b) {
+  if (a.reaches_near) return a;
+  if (b.reaches_near) return b;
+  if (a.empty()) return ScreenBound{false, b.x0, b.y0, b.x1, b.y1, std::max(a.nearest, b.nearest)};
+  if (b.empty()) return ScreenBound{false, a.x0, a.y0, a.x1, a.y1, std::max(a.nearest, b.nearest)};
+  return ScreenBound{false,
+                     std::min(a.x0, b.x0),
+                     std::min(a.y0, b.y0),
+                     std::max(a.x1, b.x1),
+                     std::max(a.y1, b.y1),
+                     std::max(a.nearest, b.nearest)};
+}
+
+bool overlaps(const Rect& a, const Rect& b) {
+  return !a.empty() && !b.empty() && a.x < b.x1() && b.x < a.x1() && a.y < b.y1() && b.y < a.y1();
+}
+
+namespace {
+Rect boundingRect(const Rect& a, const Rect& b) {
+  int x = std::min(a.x, b.x), y = std::min(a.y, b.y);
+  return Rect{x, y, std::max(a.x1(), b.x1()) - x, std::max(a.y1(), b.y1()) - y};
+}
+}  // namespace
+
+std::vector<Rect> coverRects(std::vector<Rect> rects, size_t max) {
+  DMMR_CHECK(max >= 1);
+  rects.erase(std::remove_if(rects.begin(), rects.end(), [](const Rect& r) { return r.empty(); }),
+              rects.end());
+  for (;;) {
+    // The pair to merge: any overlapping pair first, else (over the limit)
+    // the cheapest. Quadratic, but the lists are a frame's newly visible
+    // objects.
+    size_t bi = 0, bj = 0;
+    int64_t best = INT64_MAX;
+    for (size_t i = 0; i < rects.size() && best > INT64_MIN; ++i)
+      for (size_t j = i + 1; j < rects.size(); ++j) {
+        if (overlaps(rects[i], rects[j])) {
+          bi = i, bj = j, best = INT64_MIN;
+          break;
+        }
+        int64_t added = boundingRect(rects[i], rects[j]).area() - rects[i].area() - rects[j].area();
+        if (added < best) bi = i, bj = j, best = added;
+      }
+    if (best != INT64_MIN && rects.size() <= max) return rects;
+    rects[bi] = boundingRect(rects[bi], rects[bj]);
+    rects.erase(rects.begin() + std::ptrdiff_t(bj));
+  }
+}
+
+void DepthPyramid::build(const float* depth, const Rect& region) {
+  DMMR_CHECK(!region.empty());
+  region_ = region;
+  int w = region.w, h = region.h;
+  size_t n = 1;
+  while ((w > 1 || h > 1) && n < 32) {
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+    ++n;
+  }
+  levels_.resize(n);
+  dims_.resize(n);
+  dims_[0] = {region.w, region.h};
+  levels_[0].assign(depth, depth + size_t(region.w) * size_t(region.h));
+  for (size_t l = 1; l < n; ++l) {
+    auto [pw, ph] = dims_[l - 1];
+    int cw = (pw + 1) / 2, ch = (ph + 1) / 2;
+    dims_[l] = {cw, ch};
+    std::vector<float>& out = levels_[l];
+    out.resize(size_t(cw) * size_t(ch));
+    const float* in = levels_[l - 1].data();
+    for (int y = 0; y < ch; ++y) {
+      const float* r0 = in + size_t(2 * y) * size_t(pw);
+      const float* r1 = 2 * y + 1 < ph ? r0 + pw : r0;  // odd height: the last row twice
+      float* o = out.data() + size_t(y) * size_t(cw);
+      int full = pw / 2;
+      for (int x = 0; x < full; ++x)  // vectorises: four loads, three mins
+        o[x] = std::min(std::min(r0[2 * x], r0[2 * x + 1]), std::min(r1[2 * x], r1[2 * x + 1]));
+      if (full < cw) o[full] = std::min(r0[2 * full], r1[2 * full]);  // odd width
+    }
+  }
+}
+
+bool DepthPyramid::refine(int level, int x, int y, const int rect[4], double d, int* budget) const {
+  if (double(texel(level, x, y)) > d) return true;
+  if (level == 0) return false;  // a pixel of the rectangle at or behind d
+  if (--*budget < 0) return false;
+  int l = level - 1;
+  int cx0 = std::max(2 * x, rect[0] >> l), cx1 = std::min(2 * x + 1, rect[2] >> l);
+  int cy0 = std::max(2 * y, rect[1] >> l), cy1 = std::min(2 * y + 1, rect[3] >> l);
+  cx1 = std::min(cx1, width(l) - 1);
+  cy1 = std::min(cy1, height(l) - 1);
+  for (int cy = cy0; cy <= cy1; ++cy)
+    for (int cx = cx0; cx <= cx1; ++cx)
+      if (!refine(l, cx, cy, rect, d, budget)) return false;
+  return true;
+}
+
+bool DepthPyramid::hides(const ScreenBound& b, int budget) const {
+  if (b.reaches_near || levels_.empty()) return false;
+  if (b.empty()) return true;
+  // The rectangle within the region, region-relative.
+  int rect[4] = {std::max(b.x0, region_.x) - region_.x, std::max(b.y0, region_.y) - region_.y,
+                 std::min(b.x1, region_.x1() - 1) - region_.x,
+                 std::min(b.y1, region_.y1() - 1) - region_.y};
+  if (rect[2] < rect[0] || rect[3] < rect[1]) return true;  // nothing of it in the region
+  // The finest level at which the rectangle spans at most 2x2 texels.
+  int level = 0;
+  while (level + 1 < levels() && ((rect[2] >> level) - (rect[0] >> level) > 1 ||
+                                  (rect[3] >> level) - (rect[1] >> level) > 1))
+    ++level;
+  for (int y = rect[1] >> level; y <= rect[3] >> level; ++y)
+    for (int x = rect[0] >> level; x <= rect[2] >> level; ++x)
+      if (!refine(level, x, y, rect, b.nearest, &budget)) return false;
+  return true;
+}
+
+}  // namespace dmmr

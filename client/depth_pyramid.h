@@ -1,0 +1,93 @@
+// The depth-pyramid visibility test (`--visibility pyramid`): occluders are
+// drawn into depth on the GPU, the region's depth is read back once, and
+// every candidate box is tested on the CPU against a farthest-depth pyramid
+// built from it. Pure code over plain arrays: no GL in here.
+//
+// Depth is reversed-Z (draw.h): larger is nearer, the cleared buffer is 0,
+// so the farthest depth of a block of pixels is its minimum and each
+// pyramid texel holds the minimum of the (up to) four below it.
+//
+// Why it is exact (docs/architecture.md, "Depth-pyramid test"): no fragment
+// of an object lies in front of its depth-bound box or outside the pixel
+// footprint of its (wider) query box; a box is culled only when every pixel
+// of that footprint inside the region holds depth strictly nearer than the
+// box's nearest point. Then every fragment the object could make there fails
+// GL_GREATER against geometry the render stage draws too.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "camera.h"
+#include "math.h"
+
+namespace dmmr {
+
+// A box's conservative footprint in a width x height frame (GL pixel
+// coordinates, origin bottom-left): every pixel whose centre anything inside
+// the box can cover, widened by a pixel each side, clipped to the frame, and
+// an upper bound of the depth (near / distance) anything inside can have.
+struct ScreenBound {
+  // Some corner of the box is not beyond the near plane: no bound; the box
+  // must be taken as visible.
+  bool reaches_near = false;
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive; empty when x1 < x0 or y1 < y0
+  double nearest = 0;                    // depth of the box's nearest point, rounded up
+  bool empty() const { return x1 < x0 || y1 < y0; }
+  friend bool operator==(const ScreenBound&, const ScreenBound&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const ScreenBound& b);
+
+// `box` valid. Callers pass the query box (queryBoxBounds) of an object's box,
+// which encloses its depth-bound box and, after the rasteriser's rounding,
+// every pixel centre its geometry covers. Off-frame boxes give an empty
+// bound (never reaches_near unless a corner is at or before the near plane).
+ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int height);
+
+// The smallest bound covering both: the union of the rectangles, the nearer
+// depth, and reaches_near if either does.
+ScreenBound unite(const ScreenBound& a, const ScreenBound& b);
+
+// Whether two rectangles share a pixel.
+bool overlaps(const Rect& a, const Rect& b);
+// At most `max` (>= 1) rectangles covering every pixel of `rects`: where
+// there are more, the pair whose bounding rectangle adds the fewest pixels
+// is merged, and overlapping ones are merged always (so that no pixel is
+// redrawn twice). Empty rectangles are dropped.
+std::vector<Rect> coverRects(std::vector<Rect> rects, size_t max);
+
+class DepthPyramid {
+ public:
+  // `depth`: region.w * region.h floats, rows bottom first (glReadPixels'
+  // order), the depth of `region` of the frame. region non-empty.
+  void build(const float* depth, const Rect& region);
+
+  // True when nothing inside the bound can show in the region: every pixel
+  // of `b`'s rectangle inside the region holds a depth strictly greater than
+  // b.nearest (a rectangle outside the region is hidden; reaches_near is
+  // never). Exact per pixel; the coarse levels only prune. When the test
+  // would visit more than `budget` texels it answers false (visible), so the
+  // answer is always conservative.
+  bool hides(const ScreenBound& b, int budget = kDefaultBudget) const;
+  static constexpr int kDefaultBudget = 4096;
+
+  int levels() const { return int(levels_.size()); }
+  const Rect& region() const { return region_; }
+  // Level `level`'s size and its texel (x, y), region-relative; level 0 is
+  // the depth itself.
+  int width(int level) const { return dims_[size_t(level)].first; }
+  int height(int level) const { return dims_[size_t(level)].second; }
+  float texel(int level, int x, int y) const {
+    return levels_[size_t(level)][size_t(y) * size_t(width(level)) + size_t(x)];
+  }
+
+ private:
+  // Whether every pixel of the (region-relative, inclusive) rectangle inside
+  // texel (x, y) of `level` is nearer than `d`.
+  bool refine(int level, int x, int y, const int rect[4], double d, int* budget) const;
+  Rect region_;
+  std::vector<std::vector<float>> levels_;
+  std::vector<std::pair<int, int>> dims_;
+};
+
+}  // namespace dmmr

@@ -1,0 +1,263 @@
+// The depth-pyramid test's pure parts against brute force: the pyramid's
+// texels are the minima of their blocks, `hides` equals a per-pixel check of
+// the rectangle (and never says hidden where a pixel is not strictly nearer,
+// whatever the budget), and a box's screen bound holds every point of the
+// box: inside its rectangle, no nearer than its depth. Fixed-seed random
+// buffers, regions, boxes and cameras, near-plane boxes and boxes under a
+// pixel.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "depth_pyramid.h"
+#include "draw.h"
+
+using namespace dmmr;
+
+namespace {
+
+// A depth buffer like an occluder pass leaves: background 0 with a few
+// rectangles of random depth, ramps and noise, so that blocks mix levels.
+std::vector<float> randomDepth(std::mt19937& rng, int w, int h) {
+  std::vector<float> d(size_t(w) * h, 0.f);
+  std::uniform_real_distribution<float> depth(0.001f, 1.f);
+  std::uniform_int_distribution<int> rx(0, w - 1), ry(0, h - 1);
+  int rects = std::uniform_int_distribution<int>(0, 12)(rng);
+  for (int r = 0; r < rects; ++r) {
+    int x0 = rx(rng), x1 = rx(rng), y0 = ry(rng), y1 = ry(rng);
+    if (x0 > x1) std::swap(x0, x1);
+    if (y0 > y1) std::swap(y0, y1);
+    float base = depth(rng), slope = depth(rng) * 1e-3f;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        d[size_t(y) * w + x] = std::max(d[size_t(y) * w + x], base + slope * float(x - x0));
+  }
+  std::bernoulli_distribution hole(0.01);  // single far pixels: the test must find them
+  for (float& v : d)
+    if (hole(rng)) v = 0.f;
+  return d;
+}
+
+// Brute force: every pixel of the rectangle inside the region nearer than b.nearest.
+bool hiddenByPixels(const std::vector<float>& d, const Rect& region, const ScreenBound& b) {
+  if (b.reaches_near) return false;
+  for (int y = std::max(b.y0, region.y); y <= std::min(b.y1, region.y1() - 1); ++y)
+    for (int x = std::max(b.x0, region.x); x <= std::min(b.x1, region.x1() - 1); ++x)
+      if (!(double(d[size_t(y - region.y) * region.w + (x - region.x)]) > b.nearest)) return false;
+  return true;
+}
+
+ScreenBound randomBound(std::mt19937& rng, int fw, int fh) {
+  std::uniform_int_distribution<int> rx(-3, fw + 2), ry(-3, fh + 2);
+  ScreenBound b;
+  b.x0 = rx(rng);
+  b.y0 = ry(rng);
+  // Mostly small rectangles, some large, some single pixels.
+  int size = std::uniform_int_distribution<int>(0, 3)(rng) == 0
+                 ? std::uniform_int_distribution<int>(0, std::max(fw, fh))(rng)
+                 : std::uniform_int_distribution<int>(0, 6)(rng);
+  b.x1 = b.x0 + std::uniform_int_distribution<int>(0, size)(rng);
+  b.y1 = b.y0 + std::uniform_int_distribution<int>(0, size)(rng);
+  b.x0 = std::max(b.x0, 0);
+  b.y0 = std::max(b.y0, 0);
+  b.x1 = std::min(b.x1, fw - 1);
+  b.y1 = std::min(b.y1, fh - 1);
+  b.nearest = std::uniform_real_distribution<double>(0, 1.05)(rng);
+  return b;
+}
+
+TEST(DepthPyramid, TexelsAreTheMinimaOfTheirBlocks) {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 40; ++trial) {
+    int w = std::uniform_int_distribution<int>(1, 70)(rng);
+    int h = std::uniform_int_distribution<int>(1, 70)(rng);
+    std::vector<float> d = randomDepth(rng, w, h);
+    DepthPyramid p;
+    p.build(d.data(), Rect{3, 5, w, h});
+    ASSERT_EQ(p.width(p.levels() - 1), 1);
+    ASSERT_EQ(p.height(p.levels() - 1), 1);
+    for (int l = 0; l < p.levels(); ++l)
+      for (int y = 0; y < p.height(l); ++y)
+        for (int x = 0; x < p.width(l); ++x) {
+          float m = INFINITY;
+          for (int py = y << l; py < std::min(h, (y + 1) << l); ++py)
+            for (int px = x << l; px < std::min(w, (x + 1) << l); ++px)
+              m = std::min(m, d[size_t(py) * w + px]);
+          ASSERT_EQ(p.texel(l, x, y), m) << "level " << l << " texel " << x << "," << y;
+        }
+  }
+}
+
+TEST(DepthPyramid, HidesEqualsThePerPixelCheck) {
+  std::mt19937 rng(11);
+  size_t hidden = 0, shown = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    int fw = std::uniform_int_distribution<int>(1, 200)(rng);
+    int fh = std::uniform_int_distribution<int>(1, 200)(rng);
+    Rect region{std::uniform_int_distribution<int>(0, fw - 1)(rng),
+                std::uniform_int_distribution<int>(0, fh - 1)(rng), 0, 0};
+    region.w = std::uniform_int_distribution<int>(1, fw - region.x)(rng);
+    region.h = std::uniform_int_distribution<int>(1, fh - region.y)(rng);
+    std::vector<float> d = randomDepth(rng, region.w, region.h);
+    DepthPyramid p;
+    p.build(d.data(), region);
+    for (int k = 0; k < 60; ++k) {
+      ScreenBound b = randomBound(rng, fw, fh);
+      // Also depths exactly at a pixel's value: a tie is not hidden.
+      if (k % 4 == 0 && !d.empty()) b.nearest = d[size_t(k) % d.size()];
+      bool expected = hiddenByPixels(d, region, b);
+      ASSERT_EQ(p.hides(b, 1 << 30), expected) << b << " region " << region;
+      // With a tiny budget the answer may turn to "visible", never to "hidden".
+      if (p.hides(b, 2)) {
+        ASSERT_TRUE(expected) << b;
+      }
+      (expected ? hidden : shown)++;
+    }
+  }
+  EXPECT_GT(hidden, 1000u);  // the cases exercise both answers
+  EXPECT_GT(shown, 1000u);
+}
+
+TEST(DepthPyramid, NearPlaneBoundsAreNeverHidden) {
+  std::vector<float> d(16 * 16, 1.f);  // everything at the near plane
+  DepthPyramid p;
+  p.build(d.data(), Rect{0, 0, 16, 16});
+  ScreenBound b;
+  b.reaches_near = true;
+  EXPECT_FALSE(p.hides(b));
+  ScreenBound tiny{false, 3, 3, 3, 3, 0.5};
+  EXPECT_TRUE(p.hides(tiny));
+  tiny.nearest = 1.0;  // a tie with the buffer
+  EXPECT_FALSE(p.hides(tiny));
+}
+
+TEST(DepthPyramid, BoundsOutsideTheRegionAreHidden) {
+  std::vector<float> d(8 * 8, 0.f);  // nothing drawn
+  DepthPyramid p;
+  p.build(d.data(), Rect{10, 10, 8, 8});
+  EXPECT_TRUE(p.hides(ScreenBound{false, 0, 0, 9, 30, 0.9}));    // left of it
+  EXPECT_FALSE(p.hides(ScreenBound{false, 0, 0, 10, 10, 0.9}));  // touches its first pixel
+  EXPECT_TRUE(p.hides(ScreenBound{}));                           // empty rectangle
+}
+
+Camera randomCamera(std::mt19937& rng, double scale) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  Camera c;
+  c.eye = Vec3d{u(rng), u(rng), u(rng)} * scale;
+  Quatd q{u(rng), u(rng), u(rng), u(rng)};
+  double n = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+  c.rotation = Quatd{q.x / n, q.y / n, q.z / n, q.w / n};
+  c.fovy_deg = std::uniform_real_distribution<double>(20, 90)(rng);
+  c.aspect = std::uniform_real_distribution<double>(0.5, 2)(rng);
+  c.near = scale * std::pow(10.0, std::uniform_real_distribution<double>(-6, -2)(rng));
+  return c;
+}
+
+// Every point of the box (corners, and random points inside) projects into
+// the bound's rectangle (when on screen) with depth at most its nearest.
+TEST(ScreenBound, HoldsEveryPointOfTheBox) {
+  std::mt19937 rng(3);
+  size_t bounded = 0, nearPlane = 0, subPixel = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    // Scenes near the origin and far from it, small and large.
+    double scale = std::pow(10.0, std::uniform_real_distribution<double>(-1, 4)(rng));
+    Vec3d offset = trial % 3 == 0 ? Vec3d{1e6, -3e5, 2e6} : Vec3d{};
+    Camera cam = randomCamera(rng, scale);
+    cam.eye = cam.eye + offset;
+    int w = std::uniform_int_distribution<int>(1, 1024)(rng);
+    int h = std::uniform_int_distribution<int>(1, 1024)(rng);
+    cam.aspect = double(w) / h;
+    // A box somewhere in front of the camera, of random size (sub-pixel too).
+    std::uniform_real_distribution<double> u(-1, 1);
+    Vec3d dir = rotate(cam.rotation, normalize(Vec3d{u(rng) * 0.8, u(rng) * 0.8, -1}));
+    double dist = scale * std::pow(10.0, std::uniform_real_distribution<double>(-5, 1)(rng));
+    double size = dist * std::pow(10.0, std::uniform_real_distribution<double>(-6, 0.5)(rng));
+    Vec3d c = cam.eye + dir * dist;
+    Box3d box{c - Vec3d{size, size * 0.5, size * 0.3}, c + Vec3d{size * 0.7, size, size * 0.2}};
+    ScreenBound b = screenBound(box, cam, w, h);
+    if (b.reaches_near) {
+      ++nearPlane;
+      // Some corner really is at or before the near plane.
+      Mat4d v = viewRotation(cam);
+      bool some = false;
+      for (int i = 0; i < 8; ++i) some |= -v.transformVector(box.corner(i) - cam.eye).z <= cam.near;
+      ASSERT_TRUE(some) << box;
+      continue;
+    }
+    ++bounded;
+    if (b.x1 - b.x0 <= 2 && b.y1 - b.y0 <= 2) ++subPixel;
+    Mat4d view = viewRotation(cam), proj = projectionMatrix(cam);
+    for (int k = 0; k < 40; ++k) {
+      Vec3d t{(u(rng) + 1) / 2, (u(rng) + 1) / 2, (u(rng) + 1) / 2};
+      if (k < 8) t = Vec3d{double(k & 1), double((k >> 1) & 1), double((k >> 2) & 1)};
+      Vec3d p = box.lo + Vec3d{t.x * (box.hi.x - box.lo.x), t.y * (box.hi.y - box.lo.y),
+                               t.z * (box.hi.z - box.lo.z)};
+      Vec3d e = view.transformVector(p - cam.eye);
+      double cw = -e.z;
+      double ndcx = (proj.at(0, 0) * e.x) / cw, ndcy = (proj.at(1, 1) * e.y) / cw;
+      double depth = cam.near / cw;
+      ASSERT_LE(depth, b.nearest) << box << " " << cam;
+      double px = (ndcx + 1) * 0.5 * w, py = (ndcy + 1) * 0.5 * h;
+      int ix = int(std::floor(px)), iy = int(std::floor(py));
+      if (ix >= 0 && ix < w && iy >= 0 && iy < h) {
+        ASSERT_TRUE(ix >= b.x0 && ix <= b.x1 && iy >= b.y0 && iy <= b.y1)
+            << "pixel " << ix << "," << iy << " outside " << b << " for " << box;
+      }
+    }
+  }
+  EXPECT_GT(bounded, 1500u);
+  EXPECT_GT(nearPlane, 20u);
+  EXPECT_GT(subPixel, 100u);
+}
+
+TEST(ScreenBound, UniteCoversBoth) {
+  ScreenBound a{false, 1, 2, 3, 4, 0.25}, b{false, 0, 5, 2, 9, 0.5};
+  EXPECT_EQ(unite(a, b), (ScreenBound{false, 0, 2, 3, 9, 0.5}));
+  ScreenBound n;
+  n.reaches_near = true;
+  EXPECT_TRUE(unite(a, n).reaches_near);
+  EXPECT_EQ(unite(a, ScreenBound{}), (ScreenBound{false, 1, 2, 3, 4, 0.25}));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(CoverRects, CoversEveryPixelWithinTheLimitAndNoOverlap) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<Rect> in;
+    int n = std::uniform_int_distribution<int>(0, 40)(rng);
+    for (int i = 0; i < n; ++i) {
+      std::uniform_int_distribution<int> pos(0, 99), size(0, 20);
+      in.push_back(Rect{pos(rng), pos(rng), size(rng), size(rng)});
+    }
+    size_t max = std::uniform_int_distribution<size_t>(1, 8)(rng);
+    std::vector<Rect> out = coverRects(in, max);
+    ASSERT_LE(out.size(), max);
+    for (const Rect& r : in)
+      for (int y = r.y; y < r.y1(); ++y)
+        for (int x = r.x; x < r.x1(); ++x) {
+          Rect px{x, y, 1, 1};
+          ASSERT_TRUE(
+              std::any_of(out.begin(), out.end(), [&](const Rect& o) { return overlaps(o, px); }))
+              << "pixel " << x << "," << y << " of " << r << " not covered";
+        }
+    for (size_t i = 0; i < out.size(); ++i) {
+      ASSERT_FALSE(out[i].empty());
+      for (size_t j = i + 1; j < out.size(); ++j) ASSERT_FALSE(overlaps(out[i], out[j]));
+    }
+  }
+}
+
+TEST(CoverRects, KeepsDistantRectanglesApart) {
+  std::vector<Rect> out = coverRects({Rect{0, 0, 2, 2}, Rect{100, 100, 2, 2}, Rect{}}, 4);
+  EXPECT_EQ(out.size(), 2u);
+  EXPECT_EQ(coverRects({Rect{0, 0, 2, 2}, Rect{1, 1, 2, 2}}, 4),
+            (std::vector<Rect>{Rect{0, 0, 3, 3}}));
+}
+
+}  // namespace
