@@ -161,9 +161,28 @@ class Culler {
     for (uint32_t o : job.objects)
       if (!(job.frame < marked_until_[o])) candidates.push_back(o);
     std::vector<uint32_t> passed = testPyramid(candidates, job, &d);
-    std::vector<uint32_t> fresh;
-    for (uint32_t o : passed)
-      if (!std::binary_search(first.begin(), first.end(), o)) fresh.push_back(o);
+    std::sort(passed.begin(), passed.end());
+    auto newOnes = [&] {
+      std::vector<uint32_t> fresh;
+      std::set_difference(passed.begin(), passed.end(), first.begin(), first.end(),
+                          std::back_inserter(fresh));
+      return fresh;
+    };
+    std::vector<uint32_t> fresh = newOnes();
+    // Second test, as the split stages' second pass: what is new goes into
+    // depth only (colour masked) and everything that passed is tested again
+    // against that fuller depth, so that objects hidden by other new ones
+    // are neither drawn nor kept for the next frame. The depth they leave
+    // outside the redrawn footprints is only ever that of objects that pass
+    // (at each pixel the front-most passes), which are redrawn there.
+    if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
+      gl_.renderer.maskColor(true);
+      for (uint32_t o : fresh) drawDepth(o);
+      gl_.renderer.maskColor(false);
+      passed = testPyramid(passed, job, &d);
+      std::sort(passed.begin(), passed.end());
+      fresh = newOnes();
+    }
     d.prepare_ms = msSince(t0) - d.retrieve_ms;
     std::vector<uint32_t> drawn = mergeSorted({first, fresh});
     if (!fresh.empty()) {

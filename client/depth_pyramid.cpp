@@ -36,10 +36,16 @@ ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int h
     ymin = std::min(ymin, wy);
     ymax = std::max(ymax, wy);
   }
-  // Pixel i's centre is i + 0.5; a pixel of margin each side covers the
-  // corners' rounding (the query box already covers the rasteriser's).
-  auto lo = [](double v, int n) { return int(std::floor(std::clamp(v, -4.0, n + 4.0))) - 1; };
-  auto hi = [](double v, int n) { return int(std::floor(std::clamp(v, -4.0, n + 4.0))) + 1; };
+  // The pixels whose centres (i + 0.5) lie within the corners' span, give
+  // or take 1/64 pixel for this computation's rounding: the query box is
+  // already wider than the object by what the GPU's float transform and the
+  // rasteriser's snapping can move its geometry (queryBoxBounds).
+  auto lo = [](double v, int n) {
+    return int(std::ceil(std::clamp(v, -4.0, n + 4.0) - 0.5 - 1.0 / 64));
+  };
+  auto hi = [](double v, int n) {
+    return int(std::floor(std::clamp(v, -4.0, n + 4.0) - 0.5 + 1.0 / 64));
+  };
   b.x0 = std::max(0, lo(xmin, width));
   b.x1 = std::min(width - 1, hi(xmax, width));
   b.y0 = std::max(0, lo(ymin, height));
@@ -47,7 +53,29 @@ ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int h
   // Depth = near / distance; rounded up by a relative 1e-6 for this
   // computation's own rounding.
   b.nearest = camera.near / nearestDist * (1 + 1e-6);
+  // The entry-depth planes in pixel indices: ndc = (i + 0.5) * 2 / n - 1.
+  EntryDepthPlanes p = entryDepthPlanes(box, camera);
+  b.has_planes = true;
+  for (size_t i = 0; i < 3; ++i) {
+    const auto& k = p.k[i];
+    double sx = 2.0 / width, sy = 2.0 / height;
+    b.planes[i] = {k[0] * sx, k[1] * sy, k[0] * (0.5 * sx - 1) + k[1] * (0.5 * sy - 1) + k[2]};
+  }
   return b;
+}
+
+double ScreenBound::bound(int bx0, int by0, int bx1, int by1) const {
+  double d = nearest;
+  if (!has_planes) return d;
+  for (const auto& k : planes) {
+    // A linear function's maximum over a rectangle is at a corner; rounded
+    // up like `nearest`, in proportion to the terms' size.
+    double ax = std::max(k[0] * bx0, k[0] * bx1), ay = std::max(k[1] * by0, k[1] * by1);
+    double v = ax + ay + k[2];
+    v += (std::abs(ax) + std::abs(ay) + std::abs(k[2])) * 1e-6;
+    d = std::min(d, v);
+  }
+  return d;
 }
 
 ScreenBound unite(const ScreenBound& a, const ScreenBound& b) {
@@ -132,9 +160,15 @@ void DepthPyramid::build(const float* depth, const Rect& region) {
   }
 }
 
-bool DepthPyramid::refine(int level, int x, int y, const int rect[4], double d, int* budget) const {
+bool DepthPyramid::refine(int level, int x, int y, const int rect[4], const ScreenBound& b,
+                          int* budget) const {
+  // The texel's pixels within the rectangle, in frame pixels, and the
+  // nearest the box can be there.
+  int px0 = std::max(x << level, rect[0]), px1 = std::min(((x + 1) << level) - 1, rect[2]);
+  int py0 = std::max(y << level, rect[1]), py1 = std::min(((y + 1) << level) - 1, rect[3]);
+  double d = b.bound(px0 + region_.x, py0 + region_.y, px1 + region_.x, py1 + region_.y);
   if (double(texel(level, x, y)) > d) return true;
-  if (level == 0) return false;  // a pixel of the rectangle at or behind d
+  if (level == 0) return false;  // a pixel of the rectangle at or behind the box
   if (--*budget < 0) return false;
   int l = level - 1;
   int cx0 = std::max(2 * x, rect[0] >> l), cx1 = std::min(2 * x + 1, rect[2] >> l);
@@ -143,7 +177,7 @@ bool DepthPyramid::refine(int level, int x, int y, const int rect[4], double d, 
   cy1 = std::min(cy1, height(l) - 1);
   for (int cy = cy0; cy <= cy1; ++cy)
     for (int cx = cx0; cx <= cx1; ++cx)
-      if (!refine(l, cx, cy, rect, d, budget)) return false;
+      if (!refine(l, cx, cy, rect, b, budget)) return false;
   return true;
 }
 
@@ -162,7 +196,7 @@ bool DepthPyramid::hides(const ScreenBound& b, int budget) const {
     ++level;
   for (int y = rect[1] >> level; y <= rect[3] >> level; ++y)
     for (int x = rect[0] >> level; x <= rect[2] >> level; ++x)
-      if (!refine(level, x, y, rect, b.nearest, &budget)) return false;
+      if (!refine(level, x, y, rect, b, &budget)) return false;
   return true;
 }
 

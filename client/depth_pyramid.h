@@ -15,6 +15,7 @@
 // GL_GREATER against geometry the render stage draws too.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -24,16 +25,27 @@
 namespace dmmr {
 
 // A box's conservative footprint in a width x height frame (GL pixel
-// coordinates, origin bottom-left): every pixel whose centre anything inside
-// the box can cover, widened by a pixel each side, clipped to the frame, and
-// an upper bound of the depth (near / distance) anything inside can have.
+// coordinates, origin bottom-left): every pixel whose centre lies within the
+// span of the box's projected corners (so every pixel centre anything inside
+// the box can cover), clipped to the frame, and an upper bound of the depth
+// (near / distance) anything inside can have.
 struct ScreenBound {
   // Some corner of the box is not beyond the near plane: no bound; the box
   // must be taken as visible.
   bool reaches_near = false;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive; empty when x1 < x0 or y1 < y0
   double nearest = 0;                    // depth of the box's nearest point, rounded up
+  // Where the ray through pixel (x, y)'s centre enters the box, as in the
+  // shaders' depth bound (camera.h, entryDepthPlanes), in pixel indices:
+  // min over i of planes[i][0] x + planes[i][1] y + planes[i][2], a tighter
+  // bound than `nearest` at each pixel for boxes that recede in depth.
+  // Absent (has_planes false) for united bounds.
+  bool has_planes = false;
+  std::array<std::array<double, 3>, 3> planes{};
   bool empty() const { return x1 < x0 || y1 < y0; }
+  // The largest depth anything inside can have at the pixels [x0, x1] x
+  // [y0, y1] (inclusive): min(nearest, over i the planes' maximum there).
+  double bound(int bx0, int by0, int bx1, int by1) const;
   friend bool operator==(const ScreenBound&, const ScreenBound&) = default;
 };
 std::ostream& operator<<(std::ostream& os, const ScreenBound& b);
@@ -64,8 +76,8 @@ class DepthPyramid {
 
   // True when nothing inside the bound can show in the region: every pixel
   // of `b`'s rectangle inside the region holds a depth strictly greater than
-  // b.nearest (a rectangle outside the region is hidden; reaches_near is
-  // never). Exact per pixel; the coarse levels only prune. When the test
+  // b.bound at that pixel (a rectangle outside the region is hidden;
+  // reaches_near is never). Exact per pixel; the coarse levels only prune. When the test
   // would visit more than `budget` texels it answers false (visible), so the
   // answer is always conservative.
   bool hides(const ScreenBound& b, int budget = kDefaultBudget) const;
@@ -83,8 +95,8 @@ class DepthPyramid {
 
  private:
   // Whether every pixel of the (region-relative, inclusive) rectangle inside
-  // texel (x, y) of `level` is nearer than `d`.
-  bool refine(int level, int x, int y, const int rect[4], double d, int* budget) const;
+  // texel (x, y) of `level` is nearer than anything inside `b` can be there.
+  bool refine(int level, int x, int y, const int rect[4], const ScreenBound& b, int* budget) const;
   Rect region_;
   std::vector<std::vector<float>> levels_;
   std::vector<std::pair<int, int>> dims_;

@@ -21,7 +21,8 @@ struct ReferenceOptions {
   bool progress = true;
   // Also render an object-id frame per frame and add to the stats the
   // exactly visible set: objects owning at least one pixel, and their
-  // triangles (the lower bound any culling can reach).
+  // triangles (the lower bound any culling can reach), and floor_ms, the
+  // time to draw and read back the frame from that set alone.
   bool exact_visible = false;
   // The same geometry cache as the clients' (one GPU level); unlimited by
   // default, so every geometry is uploaded once and kept.

@@ -509,6 +509,12 @@ void Renderer::beginRedraw(const Rect& rect, Rgb bg) {
   gl_.UseProgram(program_);
 }
 
+void Renderer::maskColor(bool masked) {
+  GLboolean on = masked ? GL_FALSE : GL_TRUE;
+  gl_.ColorMask(on, on, on, on);
+  if (!masked) gl_.UseProgram(program_);
+}
+
 void Renderer::finish() {
   gl_.Finish();
 }

@@ -114,6 +114,8 @@ class Renderer {
   // it, keeping the camera and program of the frame: the fused stage's
   // redraw of the pixels newly visible objects may reach.
   void beginRedraw(const Rect& rect, Rgb background = {});
+  // Masks colour writes (drawDepth into a colour frame) or unmasks them.
+  void maskColor(bool masked);
   void finish();
 
  private:

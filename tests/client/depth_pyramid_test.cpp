@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "depth_pyramid.h"
@@ -46,7 +47,8 @@ bool hiddenByPixels(const std::vector<float>& d, const Rect& region, const Scree
   if (b.reaches_near) return false;
   for (int y = std::max(b.y0, region.y); y <= std::min(b.y1, region.y1() - 1); ++y)
     for (int x = std::max(b.x0, region.x); x <= std::min(b.x1, region.x1() - 1); ++x)
-      if (!(double(d[size_t(y - region.y) * region.w + (x - region.x)]) > b.nearest)) return false;
+      if (!(double(d[size_t(y - region.y) * region.w + (x - region.x)]) > b.bound(x, y, x, y)))
+        return false;
   return true;
 }
 
@@ -66,6 +68,13 @@ ScreenBound randomBound(std::mt19937& rng, int fw, int fh) {
   b.x1 = std::min(b.x1, fw - 1);
   b.y1 = std::min(b.y1, fh - 1);
   b.nearest = std::uniform_real_distribution<double>(0, 1.05)(rng);
+  // Half of them with entry-depth planes: depth sloping across the frame.
+  if (std::bernoulli_distribution(0.5)(rng)) {
+    b.has_planes = true;
+    std::uniform_real_distribution<double> slope(-2.0 / fw, 2.0 / fw), base(-0.5, 1.5);
+    for (auto& k : b.planes) k = {slope(rng), slope(rng), base(rng)};
+    if (std::bernoulli_distribution(0.3)(rng)) b.planes[2] = {0, 0, kNoDepthBound};
+  }
   return b;
 }
 
@@ -190,6 +199,7 @@ TEST(ScreenBound, HoldsEveryPointOfTheBox) {
     ++bounded;
     if (b.x1 - b.x0 <= 2 && b.y1 - b.y0 <= 2) ++subPixel;
     Mat4d view = viewRotation(cam), proj = projectionMatrix(cam);
+    std::vector<double> xs, ys;
     for (int k = 0; k < 40; ++k) {
       Vec3d t{(u(rng) + 1) / 2, (u(rng) + 1) / 2, (u(rng) + 1) / 2};
       if (k < 8) t = Vec3d{double(k & 1), double((k >> 1) & 1), double((k >> 2) & 1)};
@@ -201,10 +211,32 @@ TEST(ScreenBound, HoldsEveryPointOfTheBox) {
       double depth = cam.near / cw;
       ASSERT_LE(depth, b.nearest) << box << " " << cam;
       double px = (ndcx + 1) * 0.5 * w, py = (ndcy + 1) * 0.5 * h;
-      int ix = int(std::floor(px)), iy = int(std::floor(py));
-      if (ix >= 0 && ix < w && iy >= 0 && iy < h) {
-        ASSERT_TRUE(ix >= b.x0 && ix <= b.x1 && iy >= b.y0 && iy <= b.y1)
-            << "pixel " << ix << "," << iy << " outside " << b << " for " << box;
+      // The entry-depth planes, at the point's own (continuous) pixel
+      // position, bound it too: the ray there enters the box no farther.
+      ASSERT_TRUE(b.has_planes);
+      double entry = kNoDepthBound;
+      for (const auto& k : b.planes)
+        entry = std::min(entry, k[0] * (px - 0.5) + k[1] * (py - 0.5) + k[2]);
+      ASSERT_LE(depth, entry * (1 + 1e-9) + 1e-12) << box << " " << cam;
+      // Every pixel centre between two projected points of the box along
+      // x (or y) lies within the span of the corners: inside the rectangle
+      // (or off the frame).
+      xs.push_back(px);
+      ys.push_back(py);
+    }
+    for (auto [span, lo, hi, n] :
+         {std::tuple{&xs, b.x0, b.x1, w}, std::tuple{&ys, b.y0, b.y1, h}}) {
+      auto [mn, mx] = std::minmax_element(span->begin(), span->end());
+      for (int i = int(std::ceil(*mn - 0.5)); i + 0.5 <= *mx; ++i)
+        if (i >= 0 && i < n)
+          ASSERT_TRUE(i >= lo && i <= hi) << i << " outside " << b << " for " << box;
+        else if (i >= n)
+          break;
+      // ... and the rectangle is no wider than that span, rounded out.
+      // (Checked on boxes wholly in the frame, where no clipping happens.)
+      if (*mn >= 0 && *mx <= n && !b.empty()) {
+        EXPECT_GE(lo + 0.5, *mn - 1.0 / 32) << b;
+        EXPECT_LE(hi + 0.5, *mx + 1.0 / 32) << b;
       }
     }
   }
