@@ -156,6 +156,7 @@ class Culler {
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
     for (uint32_t o : first) d.triangles += draw(o);
+    gl_.renderer.finish();  // its rasterisation is drawing time
     auto t0 = Clock::now();
     std::vector<uint32_t> candidates;
     for (uint32_t o : job.objects)
@@ -278,6 +279,9 @@ class Culler {
   // show.
   std::vector<uint32_t> testPyramid(const std::vector<uint32_t>& candidates, const FrameJob& job,
                                     Decision* d) {
+    // Rasterising what was drawn is drawing, not deciding: wait for it
+    // before the readback is timed.
+    gl_.renderer.finish();
     auto tr = Clock::now();
     gl_.renderer.readDepth(job.region, &depth_);
     d->retrieve_ms += msSince(tr);
@@ -377,12 +381,37 @@ class Culler {
   std::vector<ScreenBound> bounds_;
 };
 
-// The cost model of a client, shared by its stages: the visibility stage
-// asks whether to cull, the render stage, which knows what drawing cost,
-// records.
-class SharedGovernor {
+// What a client's stages share to decide how to work: the cost model (the
+// visibility stage asks whether to cull, the render stage, which knows what
+// drawing cost, records) and, for --stages auto, the trial of both stage
+// modes (the visibility stage asks which mode a frame uses, the render stage
+// records when frames finish).
+class StageControl {
  public:
-  explicit SharedGovernor(bool enabled) : enabled_(enabled) {}
+  StageControl(bool governor, StageMode stages) : enabled_(governor), stages_(stages) {}
+  // The stage mode of `frame`.
+  StageMode mode(uint32_t frame) {
+    if (stages_ != StageMode::Auto) return stages_;
+    std::lock_guard<std::mutex> lock(mu_);
+    if (first_frame_ == UINT32_MAX) first_frame_ = frame;
+    return trial_.modeFor(frame - std::min(frame, first_frame_));
+  }
+  // The render stage finished `frame`; returns a line to log when this
+  // decided the trial.
+  std::string finished(uint32_t frame) {
+    if (stages_ != StageMode::Auto) return "";
+    std::lock_guard<std::mutex> lock(mu_);
+    if (trial_.decided() || first_frame_ == UINT32_MAX) return "";
+    double ms = std::chrono::duration<double, std::milli>(Clock::now().time_since_epoch()).count();
+    trial_.finished(frame - std::min(frame, first_frame_), ms);
+    if (!trial_.decided()) return "";
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "--stages auto: %s (split %.1f ms, fused %.1f ms per frame on the trial)",
+                  trial_.chosen() == StageMode::Fused ? "fused" : "split", trial_.splitMs(),
+                  trial_.fusedMs());
+    return line;
+  }
   bool culls() {
     std::lock_guard<std::mutex> lock(mu_);
     return !enabled_ || g_.culls();
@@ -398,8 +427,11 @@ class SharedGovernor {
 
  private:
   bool enabled_;
+  StageMode stages_;
   std::mutex mu_;
   CullingGovernor g_;
+  StageTrial trial_;
+  uint32_t first_frame_ = UINT32_MAX;
 };
 
 uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& objects) {
@@ -411,7 +443,7 @@ uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& object
 class VisibilityStage {
  public:
   VisibilityStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
-                  SharedGovernor& governor)
+                  StageControl& governor)
       : scene_(scene),
         host_(host),
         opts_(opts.visibility),
@@ -429,7 +461,9 @@ class VisibilityStage {
     injectFault("visibility", job.frame);
     VisibleJob out;
     out.stats.objects = job.objects.size();
-    if (!culler_) {  // no culling here: the render stage gets the whole list
+    if (!culler_ || governor_.mode(job.frame) == StageMode::Fused) {
+      // No culling here: the render stage gets the whole list (and culls,
+      // with fused stages).
       out.fused = opts_.method != VisibilityMethod::Off;
       out.visible = job.objects;
       out.stats.visible = out.visible.size();
@@ -469,7 +503,7 @@ class VisibilityStage {
   HostCache& host_;
   VisibilityOptions opts_;
   bool prefetch_;
-  SharedGovernor& governor_;
+  StageControl& governor_;
   std::unique_ptr<GlStage> gl_;
   std::unique_ptr<Culler> culler_;
 };
@@ -477,13 +511,14 @@ class VisibilityStage {
 class RenderStage {
  public:
   RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
-              SharedGovernor& governor)
+              StageControl& governor)
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
         gl_(scene, host, opts.render_context, opts.view, opts.cache),
         governor_(governor),
-        host_before_(host.stats()) {
+        host_before_(host.stats()),
+        rank_(opts.rank) {
     if (opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
@@ -565,6 +600,9 @@ class RenderStage {
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
+    std::string chosen = governor_.finished(job.frame);
+    if (!chosen.empty())
+      std::fprintf(stderr, "dmmr-render: client rank %d: %s\n", rank_, chosen.c_str());
     return out;
   }
 
@@ -575,9 +613,10 @@ class RenderStage {
   HostCache& host_;
   Codec codec_;
   GlStage gl_;
-  SharedGovernor& governor_;
+  StageControl& governor_;
   std::unique_ptr<Culler> culler_;
   HostCacheStats host_before_;
+  int rank_;
   double last_send_ms_ = 0;
 };
 
@@ -632,7 +671,9 @@ void prefetchEntering(const Scene& scene, HostCache& host, const std::vector<uin
 
 }  // namespace
 
-int runClient(Comm& comm, const ClientOptions& opts) {
+int runClient(Comm& comm, const ClientOptions& client_opts) {
+  ClientOptions opts = client_opts;
+  opts.rank = comm.rank();
   int ok = 0;
   comm.broadcast(0, &ok);  // did the server load the scene?
   if (!ok) return 1;
@@ -648,7 +689,7 @@ int runClient(Comm& comm, const ClientOptions& opts) {
     problem = e.what();
   }
 
-  SharedGovernor governor(opts.visibility.governor);
+  StageControl governor(opts.visibility.governor, opts.visibility.stages);
   BoundedQueue<FrameJob> jobs(2);
   BoundedQueue<VisibleJob> visible(2);
   FailureReport failure(comm);

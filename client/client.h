@@ -24,6 +24,7 @@ struct ClientOptions {
   VisibilityOptions visibility;
   Codec codec = Codec::LZ4;
   CacheOptions cache;
+  int rank = 0;  // set by runClient, for log lines
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.

@@ -61,13 +61,43 @@ void CullingGovernor::culled(const CullCost& c) {
     return;
   }
   if (++bad_ < patience_) return;
-  bad_ = patience_ - 1;  // after the pause, one bad frame turns it off again
   off_left_ = off_len_;
   off_len_ = std::min(max_off_, off_len_ * 2);
 }
 
 void CullingGovernor::unculled() {
-  if (off_left_ > 0) --off_left_;
+  // Back on with full patience: the first frame after a pause decides
+  // against a stale occluder set and costs more than culling will.
+  if (off_left_ > 0 && --off_left_ == 0) bad_ = 0;
+}
+
+StageMode StageTrial::modeFor(uint32_t frame) const {
+  if (decided_) return chosen_;
+  if (frame == 0 || frame > kBlocks * block_) return StageMode::Split;
+  return ((frame - 1) / block_) % 2 == 0 ? StageMode::Split : StageMode::Fused;
+}
+
+void StageTrial::finished(uint32_t frame, double ms) {
+  if (decided_ || frame == 0) return;
+  done_.push_back({frame, ms});
+  if (frame < kBlocks * block_) return;
+  // Intervals between consecutive frames of one block; the first frame of
+  // a block is left out (its interval spans the switch).
+  std::vector<double> gaps[2];
+  for (size_t i = 1; i < done_.size(); ++i) {
+    uint32_t f = done_[i].first;
+    if (f > kBlocks * block_ || done_[i - 1].first != f - 1 || (f - 1) % block_ == 0) continue;
+    gaps[modeFor(f) == StageMode::Fused].push_back(done_[i].second - done_[i - 1].second);
+  }
+  if (gaps[0].empty() || gaps[1].empty()) return;  // frames came out of order: keep split
+  auto median = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  split_ms_ = median(gaps[0]);
+  fused_ms_ = median(gaps[1]);
+  decided_ = true;
+  chosen_ = fused_ms_ < split_ms_ ? StageMode::Fused : StageMode::Split;
 }
 
 }  // namespace dmmr

@@ -31,7 +31,7 @@ enum class StageMode { Split, Fused, Auto };
 
 struct VisibilityOptions {
   VisibilityMethod method = VisibilityMethod::Pyramid;
-  StageMode stages = StageMode::Split;
+  StageMode stages = StageMode::Auto;
   // Let the cost model (CullingGovernor) turn culling off while it does not
   // pay. Never changes a pixel.
   bool governor = true;
@@ -112,6 +112,36 @@ class CullingGovernor {
  private:
   uint32_t min_off_, max_off_, patience_;
   uint32_t off_len_, off_left_ = 0, bad_ = 0;
+};
+
+// `--stages auto`: after frame 0 (which loads geometry), blocks of `block`
+// frames alternate split, fused, split, fused, so that both modes see early
+// and later frames of the walkthrough; each mode's figure is the median
+// interval between the render stage's finished frames within its blocks,
+// each block's first frame left out (the pipeline refills after a switch);
+// the faster mode renders the rest. Pure: the client feeds it frame completions. Frames count from the
+// run's first (0), so a resumed run (--from-frame) tries too.
+class StageTrial {
+ public:
+  static constexpr uint32_t kBlocks = 4;
+  explicit StageTrial(uint32_t block = 3) : block_(block) {}
+  // The mode frame `frame` is rendered with. Before the choice: the trial's
+  // schedule; frames past the trial whose result is not in yet: split.
+  StageMode modeFor(uint32_t frame) const;
+  // The render stage finished `frame` at `ms` (any monotonic clock).
+  void finished(uint32_t frame, double ms);
+  bool decided() const { return decided_; }
+  StageMode chosen() const { return chosen_; }
+  // The two blocks' medians (ms per frame), once decided.
+  double splitMs() const { return split_ms_; }
+  double fusedMs() const { return fused_ms_; }
+
+ private:
+  uint32_t block_;
+  bool decided_ = false;
+  StageMode chosen_ = StageMode::Split;
+  double split_ms_ = 0, fused_ms_ = 0;
+  std::vector<std::pair<uint32_t, double>> done_;  // trial frames finished, in order
 };
 
 }  // namespace dmmr

@@ -32,12 +32,14 @@ int main(int argc, char** argv) {
                  "occlusion culling on the clients: pyramid (depth read back, boxes tested on "
                  "the CPU; on is the same), queries (hardware occlusion queries) or off")
       ->check(CLI::IsMember({"on", "pyramid", "queries", "off"}));
-  std::string stages = "split";
-  app.add_option("--stages", stages,
-                 "split (visibility and render stage on two contexts and threads) or fused "
-                 "(one context: last frame's visible set drawn in colour, the rest tested "
-                 "against its depth; needs --visibility pyramid)")
-      ->check(CLI::IsMember({"split", "fused"}));
+  std::string stages = "auto";
+  app.add_option(
+         "--stages", stages,
+         "split (visibility and render stage on two contexts and threads) or fused "
+         "(one context: last frame's visible set drawn in colour, the rest tested "
+         "against its depth; needs --visibility pyramid) or auto (both timed on the first frames, "
+         "the faster kept)")
+      ->check(CLI::IsMember({"split", "fused", "auto"}));
   std::string costModel = "on";
   app.add_option("--cost-model", costModel,
                  "on: a client stops culling for a while when its measurements say culling "
@@ -105,11 +107,14 @@ int main(int argc, char** argv) {
   c.visibility.method = visibility == "off"       ? dmmr::VisibilityMethod::Off
                         : visibility == "queries" ? dmmr::VisibilityMethod::Queries
                                                   : dmmr::VisibilityMethod::Pyramid;
-  c.visibility.stages = stages == "fused" ? dmmr::StageMode::Fused : dmmr::StageMode::Split;
+  c.visibility.stages = stages == "fused"  ? dmmr::StageMode::Fused
+                        : stages == "auto" ? dmmr::StageMode::Auto
+                                           : dmmr::StageMode::Split;
   c.visibility.governor = costModel == "on";
-  if (c.visibility.stages == dmmr::StageMode::Fused &&
+  if (c.visibility.stages != dmmr::StageMode::Split &&
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
-    if (!quiet) std::fprintf(stderr, "dmmr-render: --stages fused needs --visibility pyramid\n");
+    if (!quiet)
+      std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
     return 1;
   }
   s.visible_weights = weights == "visible";
@@ -132,7 +137,11 @@ int main(int argc, char** argv) {
   try {
     dmmr::Comm comm(&argc, &argv);
     if (comm.rank() != 0) {
-      const int wanted = 2;  // the two GL stages' threads
+      // The GL stages' threads: one with fused stages or without culling.
+      const int wanted = c.visibility.stages == dmmr::StageMode::Fused ||
+                                 c.visibility.method == dmmr::VisibilityMethod::Off
+                             ? 1
+                             : 2;
       std::string warning = dmmr::placementWarning(comm.rank(), dmmr::allowedCpuCount(), wanted);
       if (!warning.empty()) std::fprintf(stderr, "%s\n", warning.c_str());
     }

@@ -35,6 +35,7 @@ configs=(
   "pyramid-split|--visibility pyramid --stages split"
   "pyramid-fused|--visibility pyramid --stages fused"
   "pyramid-fused-nocost|--visibility pyramid --stages fused --cost-model off"
+  "default|"
   "off|--visibility off"
 )
 view=(--width "$size" --height "$size" --no-progress)

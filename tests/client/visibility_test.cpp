@@ -285,7 +285,10 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
       ++off;
     }
     pauses.push_back(off);
-    g.culled(bad);  // the probe frame does not pay either: off again at once
+    for (int k = 0; k < 3; ++k) {  // full patience again after a pause
+      EXPECT_TRUE(g.culls());
+      g.culled(bad);
+    }
   }
   EXPECT_EQ(pauses, (std::vector<int>{4, 8, 16, 16, 16}));
   // A probe that pays keeps culling on and resets the pause.
@@ -307,6 +310,62 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
 TEST(CullingGovernor, ANothingDrawnFramePaysWhenTheRegionHadTriangles) {
   EXPECT_GT(CullingGovernor::net(cost(3, 0, 0, 5000)), 0);
   EXPECT_LT(CullingGovernor::net(cost(3, 0, 0, 0)), 0);
+}
+
+}  // namespace
+
+namespace {
+
+// Feeds a trial frames finishing `split` ms apart under split stages and
+// `fused` ms apart under fused ones; returns it once decided (or after 40).
+StageTrial runTrial(double split, double fused, uint32_t block = 4) {
+  StageTrial t(block);
+  double now = 0;
+  for (uint32_t f = 0; f < 40 && !t.decided(); ++f) {
+    now += t.modeFor(f) == StageMode::Fused ? fused : split;
+    t.finished(f, now);
+  }
+  return t;
+}
+
+TEST(StageTrial, AlternatesBlocksAfterTheLoadingFrame) {
+  StageTrial t(2);
+  std::vector<StageMode> modes;
+  for (uint32_t f = 0; f < 11; ++f) modes.push_back(t.modeFor(f));
+  using M = StageMode;
+  EXPECT_EQ(modes, (std::vector<M>{M::Split, M::Split, M::Split, M::Fused, M::Fused, M::Split,
+                                   M::Split, M::Fused, M::Fused, M::Split, M::Split}));
+}
+
+TEST(StageTrial, KeepsTheFasterMode) {
+  StageTrial a = runTrial(40, 25);
+  ASSERT_TRUE(a.decided());
+  EXPECT_EQ(a.chosen(), StageMode::Fused);
+  EXPECT_DOUBLE_EQ(a.fusedMs(), 25);
+  EXPECT_DOUBLE_EQ(a.splitMs(), 40);
+  EXPECT_EQ(a.modeFor(100), StageMode::Fused);
+  StageTrial b = runTrial(20, 30);
+  ASSERT_TRUE(b.decided());
+  EXPECT_EQ(b.chosen(), StageMode::Split);
+}
+
+TEST(StageTrial, IgnoresTheIntervalsAcrossSwitches) {
+  // Each block's first frame comes late (the pipeline refills): it must not count.
+  StageTrial t(3);
+  double now = 0;
+  std::vector<double> gaps = {500, 300, 30, 30, 400, 20, 20, 300, 30, 30, 400, 20, 20};
+  for (uint32_t f = 0; f < gaps.size(); ++f) t.finished(f, now += gaps[f]);
+  ASSERT_TRUE(t.decided());
+  EXPECT_EQ(t.chosen(), StageMode::Fused);
+  EXPECT_DOUBLE_EQ(t.splitMs(), 30);
+  EXPECT_DOUBLE_EQ(t.fusedMs(), 20);
+}
+
+TEST(StageTrial, UndecidedUntilBothBlocksAreIn) {
+  StageTrial t(4);
+  for (uint32_t f = 0; f < 12; ++f) t.finished(f, f * 10.0);
+  EXPECT_FALSE(t.decided());
+  EXPECT_EQ(t.modeFor(30), StageMode::Split);
 }
 
 }  // namespace
