@@ -118,7 +118,7 @@ class Culler {
     std::vector<uint32_t> candidates, taken = plan.marked;
     for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
       (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
-    std::vector<uint32_t> passed = test(candidates, job, &d);
+    std::vector<uint32_t> passed = test(candidates, job, &d, plan.occluders);
     // Second pass, for frames where the previous list was a poor occluder set
     // (the camera went through a wall): draw what passed and was not yet in
     // depth, and test it again against that fuller depth. Each object still
@@ -130,7 +130,7 @@ class Culler {
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       std::sort(fresh.begin(), fresh.end());
       for (uint32_t o : fresh) drawDepth(o);
-      passed = test(fresh, job, &d);
+      passed = test(fresh, job, &d, fresh);
       passed.insert(passed.end(), kept.begin(), kept.end());
     }
     gl_.context->gl().check("visibility tests");
@@ -247,10 +247,12 @@ class Culler {
       gl_.renderer.drawDepth(*mesh, o.transform, o.box, opts_.occluder_lod);
   }
 
+  // `singles` (ascending): candidates likely visible, which queries test
+  // alone instead of in runs.
   std::vector<uint32_t> test(const std::vector<uint32_t>& candidates, const FrameJob& job,
-                             Decision* d) {
+                             Decision* d, const std::vector<uint32_t>& singles) {
     if (opts_.method == VisibilityMethod::Queries)
-      return queryHierarchically(candidates, job.camera, d);
+      return queryHierarchically(candidates, job.camera, d, singles);
     return testPyramid(candidates, job, d);
   }
 
@@ -313,19 +315,34 @@ class Culler {
   // hardware occlusion queries: runs of consecutive objects (object indices
   // follow the skeleton's pre-order, so runs are spatially coherent) by
   // their union box, in rounds of decreasing run size (run_sizes, ending at
-  // 1); returns those that pass. Boxes reaching the near plane are not
-  // queried: they pass.
+  // 1); returns those that pass. As in CHC++, only objects that were hidden
+  // are batched into runs: `singles` (ascending; last frame's visible ones,
+  // likely visible again) are queried alone from the first round. Boxes
+  // reaching the near plane are not queried: they pass. A round's queries
+  // are issued with no state change between them (Renderer::queryBoxes) and
+  // its results all read before the next round reuses the query objects.
   std::vector<uint32_t> queryHierarchically(const std::vector<uint32_t>& candidates,
-                                            const Camera& camera, Decision* d) {
+                                            const Camera& camera, Decision* d,
+                                            const std::vector<uint32_t>& singles) {
     Renderer& r = gl_.renderer;
     const GlApi& gl = gl_.context->gl();
     GLenum target = opts_.query_threshold == 0 ? GL_ANY_SAMPLES_PASSED : GL_SAMPLES_PASSED;
     std::vector<uint32_t> passed;
-    std::vector<std::pair<size_t, size_t>> runs = {{0, candidates.size()}}, next;
+    std::vector<std::pair<size_t, size_t>> runs, next;
+    bool after_single = true;  // a run starts at the first candidate
+    for (size_t k = 0; k < candidates.size(); ++k) {
+      bool single = std::binary_search(singles.begin(), singles.end(), candidates[k]);
+      if (single || after_single)
+        runs.push_back({k, k + 1});
+      else
+        runs.back().second = k + 1;
+      after_single = single;
+    }
+    std::vector<Box3d> boxes;
     for (uint32_t size : opts_.run_sizes) {
       std::vector<std::pair<size_t, size_t>> asked;
       next.clear();
-      r.beginQueries();
+      boxes.clear();
       for (auto [begin, end] : runs)
         for (size_t b = begin; b < end; b += size) {
           size_t e = std::min(end, b + size);
@@ -338,10 +355,12 @@ class Culler {
               next.push_back({b, e});
             continue;
           }
-          if (queries_.size() <= asked.size()) growQueries(asked.size() + 1);
-          r.queryBox(box, queries_[asked.size()], target);
+          boxes.push_back(box);
           asked.push_back({b, e});
         }
+      if (queries_.size() < asked.size()) growQueries(asked.size());
+      r.beginQueries();
+      r.queryBoxes(boxes, queries_.data(), target);
       r.endQueries();
       d->tested += asked.size();
       auto tq = Clock::now();

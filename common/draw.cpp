@@ -202,6 +202,14 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   gl_.EnableVertexAttribArray(0);
   gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, box_buffers_[1]);
   gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof faces, faces, GL_STATIC_DRAW);
+  // queryBoxes: the same faces over a stream of eye-space corners.
+  gl_.GenVertexArrays(1, &batch_vao_);
+  gl_.BindVertexArray(batch_vao_);
+  gl_.GenBuffers(1, &batch_buffer_);
+  gl_.BindBuffer(GL_ARRAY_BUFFER, batch_buffer_);
+  gl_.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, nullptr);
+  gl_.EnableVertexAttribArray(0);
+  gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, box_buffers_[1]);
   gl_.BindVertexArray(0);
   u_mv_ = gl_.GetUniformLocation(program_, "u_mv");
   u_proj_ = gl_.GetUniformLocation(program_, "u_proj");
@@ -226,6 +234,8 @@ Renderer::~Renderer() {
   gl_.DeleteProgram(id_program_);
   gl_.DeleteBuffers(2, box_buffers_);
   gl_.DeleteVertexArrays(1, &box_vao_);
+  gl_.DeleteBuffers(1, &batch_buffer_);
+  gl_.DeleteVertexArrays(1, &batch_vao_);
   gl_.DeleteRenderbuffers(1, &color_rb_);
   gl_.DeleteRenderbuffers(1, &depth_rb_);
   gl_.DeleteFramebuffers(1, &fbo_);
@@ -390,6 +400,36 @@ void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
   gl_.DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr);
   gl_.EndQuery(target);
   if (inside) gl_.Enable(GL_CULL_FACE);
+}
+
+void Renderer::queryBoxes(const std::vector<Box3d>& boxes, const GLuint* queries, GLenum target) {
+  batch_.resize(boxes.size() * 24);
+  std::vector<char> inside(boxes.size(), 0);
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    Box3d q = queryBoxBounds(boxes[i], camera_, height_);
+    Vec3d c = q.center() - camera_.eye, half = q.extent() * 0.5;
+    inside[i] = std::abs(c.x) <= half.x && std::abs(c.y) <= half.y && std::abs(c.z) <= half.z;
+    for (int k = 0; k < 8; ++k) {  // the unit cube's corner order (x fastest)
+      Vec3d corner{k & 1 ? half.x : -half.x, k & 2 ? half.y : -half.y, k & 4 ? half.z : -half.z};
+      Vec3d e = view_rotation_.transformVector(c + corner);
+      for (int j = 0; j < 3; ++j) batch_[i * 24 + size_t(k) * 3 + size_t(j)] = float(e[j]);
+    }
+  }
+  gl_.BindVertexArray(batch_vao_);
+  gl_.BindBuffer(GL_ARRAY_BUFFER, batch_buffer_);
+  gl_.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(batch_.size() * sizeof(float)), batch_.data(),
+                 GL_STREAM_DRAW);
+  float identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  gl_.UniformMatrix4fv(u_box_mv_, 1, GL_FALSE, identity);
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    // An eye inside a box sees only back faces (never in the client, which
+    // takes boxes near the eye without a query).
+    if (inside[i]) gl_.Disable(GL_CULL_FACE);
+    gl_.BeginQuery(target, queries[i]);
+    gl_.DrawElementsBaseVertex(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLint(i * 8));
+    gl_.EndQuery(target);
+    if (inside[i]) gl_.Enable(GL_CULL_FACE);
+  }
 }
 
 void Renderer::endQueries() {

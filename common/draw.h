@@ -86,6 +86,11 @@ class Renderer {
   // GL_SAMPLES_PASSED.
   void beginQueries();
   void queryBox(const Box3d& world_box, GLuint query, GLenum target);
+  // The same for many boxes, `queries[i]` for `boxes[i]`, with no state
+  // change between queries: every box's corners go into one buffer, placed
+  // relative to the camera in double first, and each query draws its 8 with
+  // a base vertex. Between beginQueries and endQueries.
+  void queryBoxes(const std::vector<Box3d>& world_boxes, const GLuint* queries, GLenum target);
   void endQueries();
 
   // Object-id frames: each object drawn flat in the colour id + 1 (24 bits,
@@ -123,6 +128,8 @@ class Renderer {
   int width_, height_;
   GLuint fbo_ = 0, color_rb_ = 0, depth_rb_ = 0, program_ = 0;
   GLuint box_program_ = 0, box_vao_ = 0, box_buffers_[2] = {};
+  GLuint batch_vao_ = 0, batch_buffer_ = 0;  // queryBoxes' corners
+  std::vector<float> batch_;
   GLint u_box_mv_ = -1, u_box_proj_ = -1;
   GLuint id_program_ = 0;
   GLint u_id_mv_ = -1, u_id_proj_ = -1, u_id_color_ = -1;

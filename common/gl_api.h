@@ -73,6 +73,7 @@ namespace dmmr {
   X(void, DisableVertexAttribArray, (GLuint))                                            \
   X(void, VertexAttrib4f, (GLuint, GLfloat, GLfloat, GLfloat, GLfloat))                  \
   X(void, DrawElements, (GLenum, GLsizei, GLenum, const void*))                          \
+  X(void, DrawElementsBaseVertex, (GLenum, GLsizei, GLenum, const void*, GLint))         \
   X(void, DrawArrays, (GLenum, GLint, GLsizei))                                          \
   X(void, GenTextures, (GLsizei, GLuint*))                                               \
   X(void, DeleteTextures, (GLsizei, const GLuint*))                                      \

@@ -69,8 +69,8 @@ def table_for_clients(scenes, n):
     row("server: frustum division", lambda s, r: f(r["server"]["divide_ms"], "{:.2f}"))
     row("server: send jobs", lambda s, r: f(r["server"]["send_ms"], "{:.2f}"))
     row("server: assemble sub-frames", lambda s, r: f(r["server"]["assemble_ms"], "{:.2f}"))
-    row("client: prepare occlusion queries", lambda s, r: per_client(r, "prepare_ms"))
-    row("client: retrieve query results", lambda s, r: per_client(r, "retrieve_ms"))
+    row("client: visibility, prepare (occluders, tests)", lambda s, r: per_client(r, "prepare_ms"))
+    row("client: visibility, retrieve (depth readback or query results)", lambda s, r: per_client(r, "retrieve_ms"))
     row("client: pass on to the render stage", lambda s, r: per_client(r, "pass_ms"))
     row("client: load geometry", lambda s, r: per_client(r, "load_ms"))
     row("client: render", lambda s, r: per_client(r, "render_ms"))
@@ -311,7 +311,10 @@ def write(report_dir, meta, scenes, window):
           "## Stage times (the paper's Tables 1 to 3)", ""]
     for n in sorted({r["clients"] for s in scenes for r in s["runs"].values() if not r["options"]}):
         md += [table_for_clients(scenes, n), ""]
-    md += ["## Speed against error (visibility settings)", "", sweep_table(scenes), "",
+    md += ["## Speed against error (visibility settings)", "",
+           "Threshold 0 is the plain run (the default, exact depth-pyramid test); thresholds above 0 are "
+           "hardware occlusion queries (`--visibility queries --stages split --query-threshold T`).", "",
+           sweep_table(scenes), "",
            "## Plots", ""]
     for m in made:
         md.append(f"![{m}](plots/{m})")

@@ -71,7 +71,10 @@ class Runner:
         for t in self.run_cfg.get("query_thresholds", []):
             if t == 0 and sweep_n in self.run_cfg.get("clients", []):
                 continue  # the plain run with sweep_n clients is threshold 0
-            confs.append((f"render-c{sweep_n}-t{t}", sweep_n, ["--query-threshold", str(t)]))
+            # Thresholds are a query setting (the default pyramid test is
+            # exact and has none): the sweep runs the paper's queries.
+            confs.append((f"render-c{sweep_n}-t{t}", sweep_n,
+                          ["--visibility", "queries", "--stages", "split", "--query-threshold", str(t)]))
         return confs
 
     def scenes(self):

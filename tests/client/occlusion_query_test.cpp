@@ -14,6 +14,7 @@
 #include <random>
 #include <vector>
 
+#include "depth_pyramid.h"
 #include "draw.h"
 #include "gl_context.h"
 #include "visibility.h"
@@ -270,4 +271,101 @@ TEST_F(OcclusionQuery, SliverTrianglesSeenEdgeOnStayBehindTheirQueryBox) {
   std::cout << "slivers: " << slivers
             << ", pixels in front of their query box unbounded: " << unbounded
             << ", bounded: " << bounded << "\n";
+}
+
+// The depth-pyramid test's contract on the real rasteriser: every pixel an
+// object writes lies in its query box's screen bound and no nearer than the
+// bound's depth there (depth_pyramid.h). Random triangles inside random
+// boxes, and edge-on slivers as above.
+TEST_F(OcclusionQuery, EveryFragmentLiesWithinItsScreenBound) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> ndc(-1.1, 1.1), dist(0.3, 300), unit(-1, 1),
+      depth_step(0.01, 0.1), sliver(1e-6, 1e-3), len(0.5, 20), size(1e-4, 0.5);
+  Renderer& r = *renderer_;
+  std::vector<float> depth;
+  int pixels = 0, outside = 0, nearer = 0;
+  for (int i = 0; i < 3000; ++i) {
+    double D = dist(rng), pixel = 2 * D / kSize;
+    Vec3d m{ndc(rng) * D, ndc(rng) * D, -D};
+    Vec3d a, b, c;
+    if (i % 2 == 0) {  // a sliver seen almost edge-on
+      Vec3d across = normalize(Vec3d{unit(rng), unit(rng), 0.0});
+      a = m + across * (len(rng) * pixel);
+      b = m - across * (len(rng) * pixel);
+      Vec3d side = normalize(cross(m, across));
+      c = m * (1 + (unit(rng) < 0 ? -1 : 1) * depth_step(rng)) + side * (sliver(rng) * pixel);
+    } else {  // any triangle in a box of up to half the distance
+      double s = size(rng) * D;
+      auto corner = [&] { return m + Vec3d{unit(rng), unit(rng), unit(rng)} * s; };
+      a = corner(), b = corner(), c = corner();
+    }
+    GeometryData g;
+    g.positions = {float(a.x), float(a.y), float(a.z), float(b.x), float(b.y),
+                   float(b.z), float(c.x), float(c.y), float(c.z)};
+    g.indices = {0, 1, 2};
+    SubMesh sm;
+    sm.index_count = 3;
+    g.submeshes = {sm};
+    Box3d bounds = positionBox(g);
+    r.beginDepthFrame(camera_, {0, 0, kSize, kSize});
+    meshes_.push_back(r.upload(g));
+    r.draw(meshes_.back(), Mat4d::identity(), bounds, {});
+    r.readDepth({0, 0, kSize, kSize}, &depth);
+    r.release(meshes_.back());
+    meshes_.pop_back();
+    ScreenBound sb = screenBound(queryBoxBounds(bounds, camera_, kSize), camera_, kSize, kSize);
+    if (sb.reaches_near) continue;
+    for (int y = 0; y < kSize; ++y)
+      for (int x = 0; x < kSize; ++x) {
+        float d = depth[size_t(y) * kSize + x];
+        if (d <= 0) continue;
+        ++pixels;
+        if (x < sb.x0 || x > sb.x1 || y < sb.y0 || y > sb.y1)
+          ++outside;
+        else if (double(d) > sb.bound(x, y, x, y))
+          ++nearer;
+      }
+  }
+  EXPECT_GT(pixels, 5000);
+  EXPECT_EQ(outside, 0) << "pixels outside their screen bound";
+  EXPECT_EQ(nearer, 0) << "pixels nearer than their screen bound allows";
+}
+
+// The batched queries (one buffer, a base vertex per box, no state change
+// between queries) answer as the one-box-at-a-time queries do.
+TEST_F(OcclusionQuery, BatchedQueriesAnswerAsSingleOnes) {
+  Renderer& r = *renderer_;
+  const GlApi& gl = ctx_->gl();
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> xy(-12, 12), z(-16, -6), half(0.05, 2);
+  std::vector<Box3d> boxes;
+  for (int i = 0; i < 300; ++i) {
+    Vec3d c{xy(rng), xy(rng), z(rng)}, h{half(rng), half(rng), half(rng)};
+    boxes.push_back(box(c - h, c + h));
+  }
+  std::vector<GLuint> single(boxes.size()), batched(boxes.size());
+  gl.GenQueries(GLsizei(single.size()), single.data());
+  gl.GenQueries(GLsizei(batched.size()), batched.data());
+  r.beginDepthFrame(camera_, {0, 0, kSize, kSize});
+  GeometryData wall = quad(-4, 6, -5, 3, -10);  // hides some boxes, not others
+  meshes_.push_back(r.upload(wall));
+  r.draw(meshes_.back(), Mat4d::identity(), positionBox(wall), {});
+  r.beginQueries();
+  for (size_t i = 0; i < boxes.size(); ++i) r.queryBox(boxes[i], single[i], GL_SAMPLES_PASSED);
+  r.queryBoxes(boxes, batched.data(), GL_SAMPLES_PASSED);
+  r.endQueries();
+  int hidden = 0;
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    GLuint a = 0, b = 0;
+    gl.GetQueryObjectuiv(single[i], GL_QUERY_RESULT, &a);
+    gl.GetQueryObjectuiv(batched[i], GL_QUERY_RESULT, &b);
+    EXPECT_EQ(a != 0, b != 0) << boxes[i] << ": " << a << " samples alone, " << b << " batched";
+    EXPECT_NEAR(double(a), double(b), 2 + 0.02 * a) << boxes[i];
+    hidden += b == 0;
+  }
+  EXPECT_GT(hidden, 10);
+  EXPECT_LT(hidden, 290);
+  gl.DeleteQueries(GLsizei(single.size()), single.data());
+  gl.DeleteQueries(GLsizei(batched.size()), batched.data());
+  gl.check("batched queries");
 }

@@ -113,9 +113,15 @@ int64_t differingPixels(const std::string& reference, const std::string& out, si
 
 }  // namespace
 
-// Every visibility method and stage mode (docs/architecture.md).
-const char* const kModes[] = {"--visibility queries", "--visibility pyramid",
-                              "--visibility pyramid --stages fused"};
+// Every visibility method and stage mode (docs/architecture.md), on OSMesa
+// and EGL; the default (--stages auto) switches between split and fused
+// stages during its trial, on these short walkthroughs most of the path.
+const char* const kModes[] = {"--visibility queries --stages split",
+                              "--visibility pyramid --stages split",
+                              "--visibility pyramid --stages fused",
+                              "--stages auto",
+                              "--backend egl --visibility pyramid --stages split",
+                              "--backend egl --visibility pyramid --stages fused"};
 
 class VisibilityStage : public testing::TestWithParam<std::tuple<int, const char*>> {};
 
