@@ -55,6 +55,9 @@ double CullingGovernor::net(const CullCost& c) {
 }
 
 void CullingGovernor::culled(const CullCost& c) {
+  // Frames culled before the pause began are recorded during it (the
+  // stages run frames ahead of each other): they must not extend it.
+  if (off_left_ > 0) return;
   if (net(c) >= 0) {
     bad_ = 0;
     off_len_ = min_off_;

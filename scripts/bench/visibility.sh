@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Occlusion culling on one client: triangles drawn against the frustum and the
 # exactly visible set, frame time against dmmr-reference, pipelined against
-# serialised stages, and the speed-against-error sweep of the faster settings.
+# serialised stages (both with the defaults), and the speed-against-error
+# sweep of the faster settings (hardware queries, where thresholds apply).
 # usage: scripts/bench/visibility.sh   (writes out/bench/vis/, prints Markdown)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -44,10 +45,10 @@ for s in plant10m monument4m; do
   render "$s" "$p" "$s-frustum-only" --visibility off
   for t in 0 16 64; do
     for k in 0 3 10; do
-      render "$s" "$p" "$s-t$t-k$k" --query-threshold $t --keep-frames $k
+      render "$s" "$p" "$s-t$t-k$k" --visibility queries --stages split --query-threshold $t --keep-frames $k
     done
   done
-  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod" --occluder-lod --keep-frames 0
-  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod-t16" --occluder-lod --query-threshold 16 --keep-frames 0
+  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod" --visibility queries --stages split --occluder-lod --keep-frames 0
+  SCENE_DIR=out/bench/$s-lod.scene render "$s" "$p" "$s-lod-t16" --visibility queries --stages split --occluder-lod --query-threshold 16 --keep-frames 0
 done
 python3 scripts/bench/visibility_report.py "$out" plant10m monument4m

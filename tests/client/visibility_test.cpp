@@ -307,6 +307,20 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   EXPECT_EQ(off, 4);
 }
 
+TEST(CullingGovernor, FramesCulledAheadOfAPauseDoNotExtendIt) {
+  CullingGovernor g(4, 64, 3);
+  CullCost bad = cost(20, 100, 990, 1000);
+  for (int k = 0; k < 3; ++k) g.culled(bad);
+  ASSERT_FALSE(g.culls());
+  for (int k = 0; k < 2; ++k) g.culled(bad);  // still in the pipeline when it stopped
+  int off = 0;
+  while (!g.culls()) {
+    g.unculled();
+    ++off;
+  }
+  EXPECT_EQ(off, 4);
+}
+
 TEST(CullingGovernor, ANothingDrawnFramePaysWhenTheRegionHadTriangles) {
   EXPECT_GT(CullingGovernor::net(cost(3, 0, 0, 5000)), 0);
   EXPECT_LT(CullingGovernor::net(cost(3, 0, 0, 0)), 0);
