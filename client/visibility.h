@@ -31,7 +31,7 @@ enum class StageMode { Split, Fused, Auto };
 
 struct VisibilityOptions {
   VisibilityMethod method = VisibilityMethod::Pyramid;
-  StageMode stages = StageMode::Auto;
+  StageMode stages = StageMode::Split;
   // Let the cost model (CullingGovernor) turn culling off while it does not
   // pay. Never changes a pixel.
   bool governor = true;

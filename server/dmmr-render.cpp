@@ -32,7 +32,7 @@ int main(int argc, char** argv) {
                  "occlusion culling on the clients: pyramid (depth read back, boxes tested on "
                  "the CPU; on is the same), queries (hardware occlusion queries) or off")
       ->check(CLI::IsMember({"on", "pyramid", "queries", "off"}));
-  std::string stages = "auto";
+  std::string stages = "split";
   app.add_option(
          "--stages", stages,
          "split (visibility and render stage on two contexts and threads) or fused "
