@@ -30,12 +30,13 @@ scene monument4m monument --seed 1 --triangles 4000000 --frames 60
 models=${DMMR_MODELS:-../shared/models}
 scene skulls25 replicate --input "$models/skull/skull.obj" --copies 25 --frames 60
 
-configs=(
+configs=(  # label|dmmr-render options; pyramid-split is the default
   "queries-split|--visibility queries --stages split"
   "pyramid-split|--visibility pyramid --stages split"
+  "pyramid-split-nocost|--visibility pyramid --stages split --cost-model off"
   "pyramid-fused|--visibility pyramid --stages fused"
   "pyramid-fused-nocost|--visibility pyramid --stages fused --cost-model off"
-  "default|"
+  "auto|--stages auto"
   "off|--visibility off"
 )
 view=(--width "$size" --height "$size" --no-progress)

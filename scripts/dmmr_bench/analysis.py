@@ -209,6 +209,7 @@ def analyse_scene(name, info, configurations):
     for label, n, extra in configurations:
         r = render_stats(rd / f"{label}.csv", n)
         r["options"] = extra
+        r["plain"] = "--query-threshold" not in extra  # a plain run (options given to all of them aside)
         r["query_threshold"] = int(extra[extra.index("--query-threshold") + 1]) if "--query-threshold" in extra else 0
         r["conservative"] = r["query_threshold"] == 0
         r["accuracy"] = accuracy(rd / f"{label}.cmp.csv")
@@ -222,9 +223,9 @@ def analyse_scene(name, info, configurations):
         r["derived_speedup_vs_osg"] = faster(of, r["derived_frame_ms_mean"])
         res["runs"][label] = r
     # efficiency tau_1 / (S * tau_S) over the plain runs, from derived times
-    base = next((r for r in res["runs"].values() if r["clients"] == 1 and not r["options"]), None)
+    base = next((r for r in res["runs"].values() if r["clients"] == 1 and r["plain"]), None)
     for r in res["runs"].values():
-        if base and not r["options"] and r["derived_frame_ms_mean"] > 0:
+        if base and r["plain"] and r["derived_frame_ms_mean"] > 0:
             r["derived_efficiency"] = base["derived_frame_ms_mean"] / (r["clients"] * r["derived_frame_ms_mean"])
             r["derived_speedup_vs_1_client"] = base["derived_frame_ms_mean"] / r["derived_frame_ms_mean"]
     return res

@@ -56,6 +56,9 @@ def main(argv=None):
     ap.add_argument("--backend", default="osmesa", choices=["osmesa", "egl"])
     ap.add_argument("--resume", action="store_true", help="reuse runs whose CSVs exist (default: rerun)")
     ap.add_argument("--report-only", action="store_true", help="rebuild the report from existing runs")
+    ap.add_argument("--render-option", action="append", default=[], metavar="OPT",
+                    help="an extra dmmr-render option for the plain runs (not the threshold sweep), "
+                         "repeatable, e.g. --render-option=--stages --render-option=fused")
     a = ap.parse_args(argv)
 
     suite_path = find_suite(a.suite)
@@ -65,7 +68,8 @@ def main(argv=None):
     out = Path(a.out or ROOT / "out" / "bench" / f"{suite_path.stem}-{a.scale}").resolve()
     bin_dir = Path(a.bin or ROOT / "build" / "bin").resolve()
     out.mkdir(parents=True, exist_ok=True)
-    runner = Runner(suite, a.scale, out, bin_dir, backend=a.backend, resume=a.resume or a.report_only)
+    runner = Runner(suite, a.scale, out, bin_dir, backend=a.backend, resume=a.resume or a.report_only,
+                    render_options=a.render_option)
     cfg = runner.cfg
     scenes = runner.scenes()
     confs = runner.configurations()

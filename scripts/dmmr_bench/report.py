@@ -31,7 +31,7 @@ def osg_ms(s):
 
 
 def plain_runs(res):
-    return [(k, r) for k, r in res["runs"].items() if not r["options"]]
+    return [(k, r) for k, r in res["runs"].items() if r.get("plain", not r["options"])]
 
 
 def per_client(r, key, fmt="{:.1f}"):
@@ -309,7 +309,7 @@ def write(report_dir, meta, scenes, window):
           osg_paragraph(meta, scenes), "",
           "## Summary", "", summary_table(scenes),
           "## Stage times (the paper's Tables 1 to 3)", ""]
-    for n in sorted({r["clients"] for s in scenes for r in s["runs"].values() if not r["options"]}):
+    for n in sorted({r["clients"] for s in scenes for r in s["runs"].values() if r.get("plain", not r["options"])}):
         md += [table_for_clients(scenes, n), ""]
     md += ["## Speed against error (visibility settings)", "",
            "Threshold 0 is the plain run (the default, exact depth-pyramid test); thresholds above 0 are "

@@ -39,9 +39,11 @@ def run_cmd(cmd, log, env=None):
 
 
 class Runner:
-    def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False):
+    def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=()):
         self.suite, self.scale, self.out, self.bin = suite, scale, Path(out), Path(bin_dir)
         self.backend, self.resume = backend, resume
+        # extra dmmr-render options of the plain runs (not the threshold sweep), e.g. --stages fused
+        self.render_options = [str(o) for o in render_options]
         self.cfg = suite["scales"][scale]
         self.run_cfg = suite.get("run", {})
         self.log = self.out / "bench.log"
@@ -66,7 +68,7 @@ class Runner:
         """(label, clients, extra dmmr-render options) per scene, the sweep included."""
         confs = []
         for n in self.run_cfg.get("clients", [1, 2, 4]):
-            confs.append((f"render-c{n}", n, []))
+            confs.append((f"render-c{n}", n, list(self.render_options)))
         sweep_n = self.run_cfg.get("sweep_clients", 1)
         for t in self.run_cfg.get("query_thresholds", []):
             if t == 0 and sweep_n in self.run_cfg.get("clients", []):
