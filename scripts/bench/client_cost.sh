@@ -10,7 +10,7 @@
 # usage: scripts/bench/client_cost.sh   (writes out/bench/client-cost/, prints Markdown)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-bin=build/bin
+bin=${DMMR_BIN:-build/bin}
 out=${DMMR_BENCH_OUT:-out/bench/client-cost}
 size=${DMMR_BENCH_SIZE:-512}
 reps=${DMMR_BENCH_REPS:-3}
