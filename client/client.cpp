@@ -170,12 +170,38 @@ class Culler {
       return fresh;
     };
     std::vector<uint32_t> fresh = newOnes();
-    // Second test, as the split stages' second pass: what is new goes into
-    // depth only (colour masked) and everything that passed is tested again
-    // against that fuller depth, so that objects hidden by other new ones
-    // are neither drawn nor kept for the next frame. The depth they leave
-    // outside the redrawn footprints is only ever that of objects that pass
-    // (at each pixel the front-most passes), which are redrawn there.
+    double late_ms = 0;  // drawing the new objects: drawing, not deciding
+    // Drawn after objects of higher index, a new object shows what the
+    // reference shows wherever its depth differs from theirs; only an exact
+    // tie with what is drawn already could resolve the other way. One query
+    // (depth test EQUAL, nothing written) tells whether any fragment of the
+    // new objects ties with the depth drawn so far; when none does (the
+    // common case), they are drawn on top in ascending order, and a last
+    // readback prunes the next frame's list.
+    if (!fresh.empty() && !tiesWithDrawn(fresh)) {
+      auto tl = Clock::now();
+      for (uint32_t o : fresh) d.triangles += draw(o);
+      gl_.renderer.finish();
+      late_ms = msSince(tl);
+      if (fresh.size() >= opts_.second_pass_min) {
+        passed = testPyramid(passed, job, &d);
+        std::sort(passed.begin(), passed.end());
+      }
+      d.prepare_ms = msSince(t0) - d.retrieve_ms - late_ms;
+      d.visible = mergeSorted({first, fresh});
+      passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
+      std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
+      visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
+      d.occluders = first.size();
+      return d;
+    }
+    // A tie is possible: the new objects are tested again with a second
+    // pass, as the split stages' is: they go into depth only (colour masked)
+    // and everything that passed is tested against that fuller depth, so
+    // that objects hidden by other new ones are neither drawn nor kept for
+    // the next frame. The depth they leave outside the redrawn footprints is
+    // only ever that of objects that pass (at each pixel the front-most
+    // passes), which are redrawn there.
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       gl_.renderer.maskColor(true);
       for (uint32_t o : fresh) drawDepth(o);
@@ -203,11 +229,11 @@ class Culler {
       }
       d.redraw_ms = msSince(tr);
     }
+    d.visible = std::move(drawn);
     passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
     std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
     visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
     d.occluders = first.size();
-    d.visible = std::move(drawn);
     return d;
   }
 
@@ -239,6 +265,20 @@ class Culler {
     passed_now_.clear();
     visible_now_.clear();
     frame_ = frame;
+  }
+
+  // Whether any fragment of `objects` has exactly the depth already in the
+  // buffer at its pixel (one GL_ANY_SAMPLES_PASSED query, depth test EQUAL,
+  // nothing written).
+  bool tiesWithDrawn(const std::vector<uint32_t>& objects) {
+    if (queries_.empty()) growQueries(1);
+    Renderer& r = gl_.renderer;
+    r.beginDepthEqualQuery(queries_[0]);
+    for (uint32_t o : objects) drawDepth(o);
+    r.endDepthEqualQuery();
+    GLuint any = 1;
+    gl_.context->gl().GetQueryObjectuiv(queries_[0], GL_QUERY_RESULT, &any);
+    return any != 0;
   }
 
   void drawDepth(uint32_t object) {
@@ -462,12 +502,12 @@ uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& object
 class VisibilityStage {
  public:
   VisibilityStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
-                  StageControl& governor)
+                  StageControl& control)
       : scene_(scene),
         host_(host),
         opts_(opts.visibility),
         prefetch_(opts.cache.prefetch),
-        governor_(governor) {
+        control_(control) {
     // Fused stages cull on the render stage's context: this one only passes
     // jobs on.
     if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
@@ -480,7 +520,7 @@ class VisibilityStage {
     injectFault("visibility", job.frame);
     VisibleJob out;
     out.stats.objects = job.objects.size();
-    if (!culler_ || governor_.mode(job.frame) == StageMode::Fused) {
+    if (!culler_ || control_.mode(job.frame) == StageMode::Fused) {
       // No culling here: the render stage gets the whole list (and culls,
       // with fused stages).
       out.fused = opts_.method != VisibilityMethod::Off;
@@ -489,7 +529,7 @@ class VisibilityStage {
       out.job = std::move(job);
       return out;
     }
-    if (!governor_.culls()) {
+    if (!control_.culls()) {
       culler_->skip(job);
       out.visible = job.objects;
       out.stats.visible = out.visible.size();
@@ -522,20 +562,19 @@ class VisibilityStage {
   HostCache& host_;
   VisibilityOptions opts_;
   bool prefetch_;
-  StageControl& governor_;
+  StageControl& control_;
   std::unique_ptr<GlStage> gl_;
   std::unique_ptr<Culler> culler_;
 };
 
 class RenderStage {
  public:
-  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts,
-              StageControl& governor)
+  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts, StageControl& control)
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
         gl_(scene, host, opts.render_context, opts.view, opts.cache),
-        governor_(governor),
+        control_(control),
         host_before_(host.stats()),
         rank_(opts.rank) {
     if (opts.visibility.method != VisibilityMethod::Off &&
@@ -569,7 +608,7 @@ class RenderStage {
     };
     bool culled = v.culled;
     Decision fused;
-    if (v.fused && governor_.culls()) {
+    if (v.fused && control_.culls()) {
       fused = culler_->drawFused(job, draw);
       culled = true;
       st.prepare_ms = fused.prepare_ms;
@@ -599,10 +638,10 @@ class RenderStage {
     st.render_ms = msSince(t0) - st.load_ms - culling;
     // Deciding cost: the visibility stage's work, or the fused stage's
     // readback, tests and redraws.
-    governor_.record(culled, CullCost{v.fused ? culling + fused.redraw_ms
-                                              : v.stats.prepare_ms + v.stats.retrieve_ms,
-                                      st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
-                                      regionTriangles(scene_, job.objects)});
+    control_.record(culled, CullCost{v.fused ? culling + fused.redraw_ms
+                                             : v.stats.prepare_ms + v.stats.retrieve_ms,
+                                     st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
+                                     regionTriangles(scene_, job.objects)});
     auto tr = Clock::now();
     std::vector<uint8_t> rgba, rgb;
     r.readPixels(job.region, &rgba);
@@ -619,7 +658,7 @@ class RenderStage {
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
-    std::string chosen = governor_.finished(job.frame);
+    std::string chosen = control_.finished(job.frame);
     if (!chosen.empty())
       std::fprintf(stderr, "dmmr-render: client rank %d: %s\n", rank_, chosen.c_str());
     return out;
@@ -632,7 +671,7 @@ class RenderStage {
   HostCache& host_;
   Codec codec_;
   GlStage gl_;
-  StageControl& governor_;
+  StageControl& control_;
   std::unique_ptr<Culler> culler_;
   HostCacheStats host_before_;
   int rank_;
@@ -708,7 +747,7 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
     problem = e.what();
   }
 
-  StageControl governor(opts.visibility.governor, opts.visibility.stages);
+  StageControl control(opts.visibility.governor, opts.visibility.stages);
   BoundedQueue<FrameJob> jobs(2);
   BoundedQueue<VisibleJob> visible(2);
   FailureReport failure(comm);
@@ -746,10 +785,10 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   std::thread visThread, renderThread;
   if (problem.empty()) {
     visThread = startStage<VisibilityStage>(
-        [&] { return std::make_unique<VisibilityStage>(scene, *host, opts, governor); }, visLoop,
+        [&] { return std::make_unique<VisibilityStage>(scene, *host, opts, control); }, visLoop,
         &visReady);
     renderThread = startStage<RenderStage>(
-        [&] { return std::make_unique<RenderStage>(scene, *host, opts, governor); }, renderLoop,
+        [&] { return std::make_unique<RenderStage>(scene, *host, opts, control); }, renderLoop,
         &renderReady);
     for (auto* ready : {&visReady, &renderReady}) {
       std::string p = ready->get_future().get();

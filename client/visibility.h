@@ -31,7 +31,7 @@ enum class StageMode { Split, Fused, Auto };
 
 struct VisibilityOptions {
   VisibilityMethod method = VisibilityMethod::Pyramid;
-  StageMode stages = StageMode::Split;
+  StageMode stages = StageMode::Fused;
   // Let the cost model (CullingGovernor) turn culling off while it does not
   // pay. Never changes a pixel.
   bool governor = true;
@@ -119,8 +119,8 @@ class CullingGovernor {
 // and later frames of the walkthrough; each mode's figure is the median
 // interval between the render stage's finished frames within its blocks,
 // each block's first frame left out (the pipeline refills after a switch);
-// the faster mode renders the rest. Pure: the client feeds it frame completions. Frames count from the
-// run's first (0), so a resumed run (--from-frame) tries too.
+// the faster mode renders the rest. Pure: the client feeds it frame completions. Frames count from
+// the run's first (0), so a resumed run (--from-frame) tries too.
 class StageTrial {
  public:
   static constexpr uint32_t kBlocks = 4;

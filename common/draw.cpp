@@ -549,6 +549,21 @@ void Renderer::beginRedraw(const Rect& rect, Rgb bg) {
   gl_.UseProgram(program_);
 }
 
+void Renderer::beginDepthEqualQuery(GLuint query) {
+  gl_.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl_.DepthMask(GL_FALSE);
+  gl_.DepthFunc(GL_EQUAL);
+  gl_.BeginQuery(GL_ANY_SAMPLES_PASSED, query);
+}
+
+void Renderer::endDepthEqualQuery() {
+  gl_.EndQuery(GL_ANY_SAMPLES_PASSED);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl_.DepthMask(GL_TRUE);
+  gl_.DepthFunc(GL_GREATER);
+  gl_.UseProgram(program_);
+}
+
 void Renderer::maskColor(bool masked) {
   GLboolean on = masked ? GL_FALSE : GL_TRUE;
   gl_.ColorMask(on, on, on, on);

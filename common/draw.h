@@ -119,6 +119,11 @@ class Renderer {
   // it, keeping the camera and program of the frame: the fused stage's
   // redraw of the pixels newly visible objects may reach.
   void beginRedraw(const Rect& rect, Rgb background = {});
+  // Counts, into `query` (GL_ANY_SAMPLES_PASSED), the fragments drawn with
+  // drawDepth until endDepthEqualQuery whose depth equals the depth already
+  // at their pixel; nothing is written. The frame's state comes back after.
+  void beginDepthEqualQuery(GLuint query);
+  void endDepthEqualQuery();
   // Masks colour writes (drawDepth into a colour frame) or unmasks them.
   void maskColor(bool masked);
   void finish();

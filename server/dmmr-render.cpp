@@ -32,13 +32,12 @@ int main(int argc, char** argv) {
                  "occlusion culling on the clients: pyramid (depth read back, boxes tested on "
                  "the CPU; on is the same), queries (hardware occlusion queries) or off")
       ->check(CLI::IsMember({"on", "pyramid", "queries", "off"}));
-  std::string stages = "split";
-  app.add_option(
-         "--stages", stages,
-         "split (visibility and render stage on two contexts and threads) or fused "
-         "(one context: last frame's visible set drawn in colour, the rest tested "
-         "against its depth; needs --visibility pyramid) or auto (both timed on the first frames, "
-         "the faster kept)")
+  std::string stages = "fused";
+  app.add_option("--stages", stages,
+                 "fused (the default: one context draws last frame's visible set in colour and "
+                 "tests the rest against its depth; needs --visibility pyramid), split (the "
+                 "visibility and render stages on two contexts and threads; the default with "
+                 "--visibility queries) or auto (both timed on the first frames, the faster kept)")
       ->check(CLI::IsMember({"split", "fused", "auto"}));
   std::string costModel = "on";
   app.add_option("--cost-model", costModel,
@@ -107,6 +106,9 @@ int main(int argc, char** argv) {
   c.visibility.method = visibility == "off"       ? dmmr::VisibilityMethod::Off
                         : visibility == "queries" ? dmmr::VisibilityMethod::Queries
                                                   : dmmr::VisibilityMethod::Pyramid;
+  // Queries need the visibility stage's own context: split stages unless
+  // told otherwise.
+  if (visibility == "queries" && app.count("--stages") == 0) stages = "split";
   c.visibility.stages = stages == "fused"  ? dmmr::StageMode::Fused
                         : stages == "auto" ? dmmr::StageMode::Auto
                                            : dmmr::StageMode::Split;

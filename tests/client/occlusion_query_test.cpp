@@ -64,6 +64,18 @@ GeometryData join(GeometryData a, const GeometryData& b) {
   return a;
 }
 
+// One triangle, one submesh.
+GeometryData triangle(Vec3d a, Vec3d b, Vec3d c) {
+  GeometryData g;
+  g.positions = {float(a.x), float(a.y), float(a.z), float(b.x), float(b.y),
+                 float(b.z), float(c.x), float(c.y), float(c.z)};
+  g.indices = {0, 1, 2};
+  SubMesh s;
+  s.index_count = 3;
+  g.submeshes = {s};
+  return g;
+}
+
 class OcclusionQuery : public testing::Test {
  protected:
   void SetUp() override {
@@ -255,13 +267,7 @@ TEST_F(OcclusionQuery, SliverTrianglesSeenEdgeOnStayBehindTheirQueryBox) {
     Vec3d side = normalize(cross(m, across));
     double step = (unit(rng) < 0 ? -1 : 1) * depth_step(rng);
     Vec3d c = m * (1 + step) + side * (sliver(rng) * pixel);
-    GeometryData g;
-    g.positions = {float(a.x), float(a.y), float(a.z), float(b.x), float(b.y),
-                   float(b.z), float(c.x), float(c.y), float(c.z)};
-    g.indices = {0, 1, 2};
-    SubMesh s;
-    s.index_count = 3;
-    g.submeshes = {s};
+    GeometryData g = triangle(a, b, c);
     unbounded += pixelsInFrontOfQueryBox(*renderer_, ctx_->gl(), camera_, g, false);
     bounded += pixelsInFrontOfQueryBox(*renderer_, ctx_->gl(), camera_, g, true);
   }
@@ -299,13 +305,7 @@ TEST_F(OcclusionQuery, EveryFragmentLiesWithinItsScreenBound) {
       auto corner = [&] { return m + Vec3d{unit(rng), unit(rng), unit(rng)} * s; };
       a = corner(), b = corner(), c = corner();
     }
-    GeometryData g;
-    g.positions = {float(a.x), float(a.y), float(a.z), float(b.x), float(b.y),
-                   float(b.z), float(c.x), float(c.y), float(c.z)};
-    g.indices = {0, 1, 2};
-    SubMesh sm;
-    sm.index_count = 3;
-    g.submeshes = {sm};
+    GeometryData g = triangle(a, b, c);
     Box3d bounds = positionBox(g);
     r.beginDepthFrame(camera_, {0, 0, kSize, kSize});
     meshes_.push_back(r.upload(g));
