@@ -98,7 +98,12 @@ using DrawFn = std::function<uint64_t(uint32_t)>;
 class Culler {
  public:
   Culler(const Scene& scene, const VisibilityOptions& opts, GlStage& gl)
-      : scene_(scene), opts_(opts), gl_(gl), marked_until_(scene.objects.size(), 0) {}
+      : scene_(scene), opts_(opts), gl_(gl), marked_until_(scene.objects.size(), 0) {
+    // Test hook: DMMR_FUSED_REDRAW=always takes the fused stage's redraw
+    // path (the one a possible depth tie takes) in every frame.
+    const char* redraw = std::getenv("DMMR_FUSED_REDRAW");
+    always_redraw_ = redraw && std::strcmp(redraw, "always") == 0;
+  }
 
   // Split stages: occluders into depth, every candidate tested against it,
   // a second pass where objects passed that were not occluders.
@@ -178,7 +183,7 @@ class Culler {
     // new objects ties with the depth drawn so far; when none does (the
     // common case), they are drawn on top in ascending order, and a last
     // readback prunes the next frame's list.
-    if (!fresh.empty() && !tiesWithDrawn(fresh)) {
+    if (!fresh.empty() && !always_redraw_ && !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
@@ -438,6 +443,7 @@ class Culler {
   std::vector<float> depth_;
   DepthPyramid pyramid_;
   std::vector<ScreenBound> bounds_;
+  bool always_redraw_ = false;
 };
 
 // What a client's stages share to decide how to work: the cost model (the

@@ -369,3 +369,30 @@ TEST_F(OcclusionQuery, BatchedQueriesAnswerAsSingleOnes) {
   gl.DeleteQueries(GLsizei(batched.size()), batched.data());
   gl.check("batched queries");
 }
+
+// The fused stages' tie check: a fragment at exactly the depth already in
+// the buffer counts, one nearer or farther does not.
+TEST_F(OcclusionQuery, DepthEqualQueryFindsExactTiesOnly) {
+  Renderer& r = *renderer_;
+  const GlApi& gl = ctx_->gl();
+  GLuint q = 0;
+  gl.GenQueries(1, &q);
+  auto ties = [&](const GeometryData& drawn, const GeometryData& probe) {
+    r.beginFrame(camera_, {0, 0, kSize, kSize});
+    meshes_.push_back(r.upload(drawn));
+    r.draw(meshes_.back(), Mat4d::identity(), positionBox(drawn), {});
+    meshes_.push_back(r.upload(probe));
+    r.beginDepthEqualQuery(q);
+    r.drawDepth(meshes_.back(), Mat4d::identity(), positionBox(probe), false);
+    r.endDepthEqualQuery();
+    GLuint any = 7;
+    gl.GetQueryObjectuiv(q, GL_QUERY_RESULT, &any);
+    return any != 0;
+  };
+  GeometryData wall = quad(-4, 4, -4, 4, -10);
+  EXPECT_TRUE(ties(wall, wall));
+  EXPECT_FALSE(ties(wall, quad(-4, 4, -4, 4, -9.99)));
+  EXPECT_FALSE(ties(wall, quad(-4, 4, -4, 4, -10.01)));
+  EXPECT_FALSE(ties(quad(-4, 0, -4, 4, -10), quad(1, 4, -4, 4, -10)));  // side by side
+  gl.DeleteQueries(1, &q);
+}
