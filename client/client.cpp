@@ -79,6 +79,13 @@ struct GlStage {
   GpuCache meshes;
 };
 
+// Triangles of `objects` (the preprocessor's weights).
+uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& objects) {
+  uint64_t n = 0;
+  for (uint32_t o : objects) n += scene.objects[o].weight;
+  return n;
+}
+
 // What culling decided for one job, and what the deciding cost.
 struct Decision {
   std::vector<uint32_t> visible;  // ascending: the render stage draws these
@@ -183,7 +190,14 @@ class Culler {
     // new objects ties with the depth drawn so far; when none does (the
     // common case), they are drawn on top in ascending order, and a last
     // readback prunes the next frame's list.
-    if (!fresh.empty() && !always_redraw_ && !tiesWithDrawn(fresh)) {
+    // Drawing the new objects on top also draws those that others among
+    // them hide; when they are many (more triangles than a quarter of the
+    // step-1 set), the second pass below, which leaves those out, is
+    // cheaper.
+    uint64_t fresh_tris = regionTriangles(scene_, fresh),
+             first_tris = regionTriangles(scene_, first);
+    bool few = fresh_tris * 4 <= first_tris + kFewNewTriangles;
+    if (!fresh.empty() && few && !always_redraw_ && !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
@@ -251,6 +265,9 @@ class Culler {
 
  private:
   static constexpr size_t kMaxRedrawRects = 16;
+  // New objects of up to this many triangles are always few enough to draw
+  // on top.
+  static constexpr uint64_t kFewNewTriangles = 4096;
 
   VisibilityPlan planFor(const FrameJob& job) const {
     static const std::vector<uint32_t> kNone;
@@ -498,12 +515,6 @@ class StageControl {
   StageTrial trial_;
   uint32_t first_frame_ = UINT32_MAX;
 };
-
-uint64_t regionTriangles(const Scene& scene, const std::vector<uint32_t>& objects) {
-  uint64_t n = 0;
-  for (uint32_t o : objects) n += scene.objects[o].weight;
-  return n;
-}
 
 class VisibilityStage {
  public:
