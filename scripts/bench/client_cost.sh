@@ -14,17 +14,10 @@ bin=${DMMR_BIN:-build/bin}
 out=${DMMR_BENCH_OUT:-out/bench/client-cost}
 size=${DMMR_BENCH_SIZE:-512}
 reps=${DMMR_BENCH_REPS:-3}
-mpi=(mpirun --oversubscribe --bind-to none -np 2)
-[ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 mkdir -p "$out"
 
-scene() {  # name, scenegen arguments...
-  local name=$1
-  shift
-  [ -f "out/bench/$name.osgb" ] || $bin/dmmr-scenegen "$@" -o "out/bench/$name.osgb" \
-    --walkthrough "out/bench/$name.generated.path" >/dev/null
-  [ -d "out/bench/$name.scene" ] || $bin/dmmr-preprocess "out/bench/$name.osgb" -o "out/bench/$name.scene" --no-progress >/dev/null
-}
+# shellcheck source=lib.sh
+source scripts/bench/lib.sh
 scene plant10m plant --seed 1 --triangles 10000000 --frames 60
 scene monument4m monument --seed 1 --triangles 4000000 --frames 60
 models=${DMMR_MODELS:-../shared/models}

@@ -1,0 +1,14 @@
+# Shared by the one-client benchmark scripts (source it after setting `bin`):
+# the launcher for a server and one client, and scene generation into
+# out/bench/NAME.{osgb,generated.path,scene}, reused when present.
+mpi=(mpirun --oversubscribe --bind-to none -np 2)
+[ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
+
+scene() {  # name, scenegen arguments...
+  local name=$1
+  shift
+  mkdir -p out/bench
+  [ -f "out/bench/$name.osgb" ] || $bin/dmmr-scenegen "$@" -o "out/bench/$name.osgb" \
+    --walkthrough "out/bench/$name.generated.path" >/dev/null
+  [ -d "out/bench/$name.scene" ] || $bin/dmmr-preprocess "out/bench/$name.osgb" -o "out/bench/$name.scene" --no-progress >/dev/null
+}
