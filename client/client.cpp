@@ -258,9 +258,14 @@ class Culler {
 
   // The cost model turned culling off for this job: everything is drawn,
   // and the region's objects are the next frame's occluders.
-  void skip(const FrameJob& job) {
+  void skip(const FrameJob& job) { adopt(job, job.objects); }
+
+  // Another culler decided this job (--stages auto runs split frames
+  // between fused ones): its visible list (ascending) is this one's next
+  // occluder set, so that a switch finds the list current.
+  void adopt(const FrameJob& job, const std::vector<uint32_t>& visible) {
     startFrame(job.frame);
-    visible_now_.insert(visible_now_.end(), job.objects.begin(), job.objects.end());
+    visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
   }
 
  private:
@@ -635,7 +640,10 @@ class RenderStage {
       st.visible = fused.visible.size();
       st.triangles = fused.triangles;
     } else {
-      if (v.fused) culler_->skip(job);
+      if (v.fused)
+        culler_->skip(job);
+      else if (culler_)
+        culler_->adopt(job, v.visible);  // a split frame of --stages auto
       for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
     }
     const std::vector<uint32_t>& drawn = v.fused && culled ? fused.visible : v.visible;
