@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
@@ -477,17 +478,28 @@ class StageControl {
  public:
   StageControl(bool governor, StageMode stages) : enabled_(governor), stages_(stages) {}
   // The stage mode of `frame`.
+  // During the trial, a block's first frame waits (at most 2 s) until the
+  // render stage has finished the frame before, so that one mode's block
+  // does not overlap the other's: the server keeps frames in flight.
   StageMode mode(uint32_t frame) {
     if (stages_ != StageMode::Auto) return stages_;
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::mutex> lock(mu_);
     if (first_frame_ == UINT32_MAX) first_frame_ = frame;
-    return trial_.modeFor(frame - std::min(frame, first_frame_));
+    uint32_t rel = frame - std::min(frame, first_frame_);
+    StageMode m = trial_.modeFor(rel);
+    if (!trial_.decided() && rel > 1 && trial_.modeFor(rel - 1) != m)
+      done_cv_.wait_for(lock, std::chrono::seconds(2), [&] {
+        return last_finished_ != UINT32_MAX && last_finished_ + 1 >= frame;
+      });
+    return m;
   }
   // The render stage finished `frame`; returns a line to log when this
   // decided the trial.
   std::string finished(uint32_t frame) {
     if (stages_ != StageMode::Auto) return "";
     std::lock_guard<std::mutex> lock(mu_);
+    last_finished_ = frame;
+    done_cv_.notify_all();
     if (trial_.decided() || first_frame_ == UINT32_MAX) return "";
     double ms = std::chrono::duration<double, std::milli>(Clock::now().time_since_epoch()).count();
     trial_.finished(frame - std::min(frame, first_frame_), ms);
@@ -519,6 +531,8 @@ class StageControl {
   CullingGovernor g_;
   StageTrial trial_;
   uint32_t first_frame_ = UINT32_MAX;
+  uint32_t last_finished_ = UINT32_MAX;  // the render stage's latest frame
+  std::condition_variable done_cv_;
 };
 
 class VisibilityStage {
