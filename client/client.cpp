@@ -208,12 +208,7 @@ class Culler {
         std::sort(passed.begin(), passed.end());
       }
       d.prepare_ms = msSince(t0) - d.retrieve_ms - late_ms;
-      d.visible = mergeSorted({first, fresh});
-      passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
-      std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
-      visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
-      d.occluders = first.size();
-      return d;
+      return fusedDecision(std::move(d), plan, first, fresh, passed);
     }
     // A tie is possible: the new objects are tested again with a second
     // pass, as the split stages' is: they go into depth only (colour masked)
@@ -231,30 +226,27 @@ class Culler {
       fresh = newOnes();
     }
     d.prepare_ms = msSince(t0) - d.retrieve_ms;
-    std::vector<uint32_t> drawn = mergeSorted({first, fresh});
     if (!fresh.empty()) {
       auto tr = Clock::now();
-      std::vector<Rect> rects;
-      for (uint32_t o : fresh) rects.push_back(footprint(o, job));
-      std::vector<char> counted(fresh.size(), 0);
+      std::vector<uint32_t> drawn = mergeSorted({first, fresh});
+      std::vector<Rect> footprints(drawn.size()), rects;
+      for (size_t i = 0; i < drawn.size(); ++i) footprints[i] = footprint(drawn[i], job);
+      for (size_t i = 0; i < drawn.size(); ++i)
+        if (std::binary_search(fresh.begin(), fresh.end(), drawn[i]))
+          rects.push_back(footprints[i]);
+      std::vector<char> counted(drawn.size(), 0);  // new objects' triangles, once each
       for (const Rect& rect : coverRects(std::move(rects), kMaxRedrawRects)) {
         gl_.renderer.beginRedraw(rect);
-        for (uint32_t o : drawn) {
-          if (!overlaps(footprint(o, job), rect)) continue;
-          uint64_t t = draw(o);
-          auto f = std::lower_bound(fresh.begin(), fresh.end(), o);
-          if (f != fresh.end() && *f == o && !counted[size_t(f - fresh.begin())]++)
+        for (size_t i = 0; i < drawn.size(); ++i) {
+          if (!overlaps(footprints[i], rect)) continue;
+          uint64_t t = draw(drawn[i]);
+          if (!counted[i]++ && std::binary_search(fresh.begin(), fresh.end(), drawn[i]))
             d.triangles += t;
         }
       }
       d.redraw_ms = msSince(tr);
     }
-    d.visible = std::move(drawn);
-    passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
-    std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
-    visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
-    d.occluders = first.size();
-    return d;
+    return fusedDecision(std::move(d), plan, first, fresh, passed);
   }
 
   // The cost model turned culling off for this job: everything is drawn,
@@ -274,6 +266,19 @@ class Culler {
   // New objects of up to this many triangles are always few enough to draw
   // on top.
   static constexpr uint64_t kFewNewTriangles = 4096;
+
+  // A fused frame's bookkeeping: it drew `first` and `fresh`; what
+  // `passed` (ascending) is marked and, with the marked, the next frame's
+  // occluder set.
+  Decision fusedDecision(Decision d, const VisibilityPlan& plan, const std::vector<uint32_t>& first,
+                         const std::vector<uint32_t>& fresh, const std::vector<uint32_t>& passed) {
+    d.visible = mergeSorted({first, fresh});
+    passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
+    std::vector<uint32_t> visible = mergeSorted({plan.marked, passed});
+    visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
+    d.occluders = first.size();
+    return d;
+  }
 
   VisibilityPlan planFor(const FrameJob& job) const {
     static const std::vector<uint32_t> kNone;
@@ -556,17 +561,14 @@ class VisibilityStage {
     injectFault("visibility", job.frame);
     VisibleJob out;
     out.stats.objects = job.objects.size();
-    if (!culler_ || control_.mode(job.frame) == StageMode::Fused) {
-      // No culling here: the render stage gets the whole list (and culls,
-      // with fused stages).
-      out.fused = opts_.method != VisibilityMethod::Off;
-      out.visible = job.objects;
-      out.stats.visible = out.visible.size();
-      out.job = std::move(job);
-      return out;
-    }
-    if (!control_.culls()) {
-      culler_->skip(job);
+    bool here = culler_ && control_.mode(job.frame) != StageMode::Fused;
+    if (!here || !control_.culls()) {
+      // The render stage gets the whole list: it culls (fused stages), or
+      // nothing does (no culling, or the cost model paused it).
+      if (here)
+        culler_->skip(job);
+      else
+        out.fused = opts_.method != VisibilityMethod::Off;
       out.visible = job.objects;
       out.stats.visible = out.visible.size();
       out.job = std::move(job);
@@ -642,11 +644,10 @@ class RenderStage {
       r.draw(*mesh, o.transform, o.box, gl_.meshes.textures());
       return mesh->triangles;
     };
-    bool culled = v.culled;
+    bool fused_culled = v.fused && control_.culls(), culled = v.culled || fused_culled;
     Decision fused;
-    if (v.fused && control_.culls()) {
+    if (fused_culled) {
       fused = culler_->drawFused(job, draw);
-      culled = true;
       st.prepare_ms = fused.prepare_ms;
       st.retrieve_ms = fused.retrieve_ms;
       st.occluders = fused.occluders;
@@ -660,7 +661,7 @@ class RenderStage {
         culler_->adopt(job, v.visible);  // a split frame of --stages auto
       for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
     }
-    const std::vector<uint32_t>& drawn = v.fused && culled ? fused.visible : v.visible;
+    const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
     addGpuStats(st, gpu_before, gl_.meshes.stats());
     // The host levels are shared by both stages; each sub-frame reports
@@ -673,7 +674,7 @@ class RenderStage {
     st.skipped = h.skipped - host_before_.skipped;
     st.ram_resident = h.resident;
     host_before_ = h;
-    double culling = v.fused && culled ? fused.prepare_ms + fused.retrieve_ms : 0;
+    double culling = fused_culled ? fused.prepare_ms + fused.retrieve_ms : 0;
     st.render_ms = msSince(t0) - st.load_ms - culling;
     // Deciding cost: the visibility stage's work, or the fused stage's
     // readback, tests and redraws.

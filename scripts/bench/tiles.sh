@@ -61,6 +61,8 @@ run() {  # scene clients net label dmmr-render options...
   local name="$s-$net-c$n-$label"
   [ -f "$out/$name.cmp.csv" ] && return 0  # done in an earlier, interrupted run
   echo "tiles.sh: $name" >&2
+  # Placement: mpirun-netem.sh runs mpirun --map-by node --bind-to none (one
+  # rank per namespace, none bound to a core).
   LP_NUM_THREADS=1 scripts/netem/mpirun-netem.sh -x LP_NUM_THREADS -- $bin/dmmr-render \
     --scene "out/bench/$s.scene" --walkthrough "out/bench/$s.path" --out "$out/$name" \
     --width "$W" --height "$H" --stats "$out/$name.csv" --no-progress --client-timeout 300 "$@" \
