@@ -18,6 +18,7 @@
 #include "draw.h"
 #include "error.h"
 #include "gpu_cache.h"
+#include "guarded.h"
 #include "host_cache.h"
 #include "protocol.h"
 #include "queue.h"
@@ -42,9 +43,11 @@ struct VisibleJob {
   bool fused = false;       // the render stage culls (fused stages)
 };
 
-// Test hook: DMMR_INJECT_FAULT=STAGE:FRAME[:HOW] (STAGE visibility or
-// render; HOW throw, the default, kill or hang) makes that stage of client 1
-// fail at that frame, so tests reach the failure paths mid-run.
+// Test hook: DMMR_INJECT_FAULT=STAGE:FRAME[:HOW] (STAGE visibility, render,
+// or start, which is before the client says Hello, with FRAME 0; HOW throw,
+// the default, foreign (throws an int, as a library might: no
+// std::exception), kill or hang) makes that stage of client 1 fail at that
+// frame, so tests reach the failure paths mid-run.
 void injectFault(const char* stage, uint32_t frame) {
   const char* spec = std::getenv("DMMR_INJECT_FAULT");
   const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -56,6 +59,7 @@ void injectFault(const char* stage, uint32_t frame) {
   if (std::strcmp(rest, ":kill") == 0) std::raise(SIGKILL);
   if (std::strcmp(rest, ":hang") == 0)
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+  if (std::strcmp(rest, ":foreign") == 0) throw int(frame);
   throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(frame));
 }
 
@@ -739,19 +743,24 @@ class FailureReport {
 
 // Runs `make` on a new thread, reports whether it succeeded through the
 // future, then runs `loop` with the object it made (on that same thread,
-// where its GL context is current).
-template <typename Stage, typename Loop>
+// where its GL context is current). Whatever escapes (any exception type,
+// from the loop or the stage's destructor's callees) goes to `escaped`, and
+// then `drain` runs, so the threads that feed this one never block on it.
+template <typename Stage, typename Loop, typename Escaped, typename Drain>
 std::thread startStage(std::function<std::unique_ptr<Stage>()> make, Loop loop,
-                       std::promise<std::string>* ready) {
-  return std::thread([make, loop, ready] {
+                       std::promise<std::string>* ready, Escaped escaped, Drain drain) {
+  return std::thread([make, loop, ready, escaped, drain] {
     std::unique_ptr<Stage> stage;
-    try {
-      stage = make();
-      ready->set_value("");
-    } catch (const std::exception& e) {
-      ready->set_value(e.what());
-    }
-    loop(stage.get());  // null when construction failed: the loop only drains
+    std::string problem;
+    runGuarded([&] { stage = make(); }, [&](const std::string& what) { problem = what; });
+    ready->set_value(problem);
+    runGuarded(
+        [&] {
+          loop(stage.get());  // null when construction failed: the loop only drains
+          stage.reset();      // GL teardown on the thread whose context it is
+        },
+        escaped);
+    drain();
   });
 }
 
@@ -826,22 +835,35 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   if (problem.empty()) {
     visThread = startStage<VisibilityStage>(
         [&] { return std::make_unique<VisibilityStage>(scene, *host, opts, control); }, visLoop,
-        &visReady);
+        &visReady, [&](const std::string& what) { failure.fail("visibility stage: " + what); },
+        [&] {
+          while (jobs.pop()) {
+          }
+          visible.close();
+        });
     renderThread = startStage<RenderStage>(
         [&] { return std::make_unique<RenderStage>(scene, *host, opts, control); }, renderLoop,
-        &renderReady);
+        &renderReady, [&](const std::string& what) { failure.fail("render stage: " + what); },
+        [&] {
+          while (visible.pop()) {
+          }
+        });
     for (auto* ready : {&visReady, &renderReady}) {
       std::string p = ready->get_future().get();
       if (!p.empty() && problem.empty()) problem = p;
     }
   }
-  comm.send(0, Tag::Hello, encodeText(problem));
+  // The MPI thread (this one): an exception here (MPI itself failing) must
+  // still close the queues and join the stages, or destroying them while
+  // joinable would be std::terminate; it is rethrown after.
   int go = 0;
-  comm.broadcast(0, &go);
-
-  if (go) {
+  std::exception_ptr lost;
+  try {
+    injectFault("start", 0);
+    comm.send(0, Tag::Hello, encodeText(problem));
+    comm.broadcast(0, &go);
     std::vector<uint32_t> region;  // the previous job's objects
-    for (;;) {
+    while (go) {
       Message m = comm.recv(0);
       if (m.tag == Tag::Shutdown) break;
       if (m.tag == Tag::Ping) {  // the server measures the link (--balance auto)
@@ -850,18 +872,21 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
       }
       if (m.tag != Tag::Job) continue;
       try {
-        FrameJob job = decodeJob(m.bytes);
+        FrameJob job = decodeJob(m.bytes, scene.objects.size());
         if (opts.cache.prefetch) prefetchEntering(scene, *host, job.objects, &region);
         jobs.push(std::move(job));
       } catch (const std::exception& e) {
         failure.fail(e.what());
       }
     }
+  } catch (...) {
+    lost = std::current_exception();
   }
   jobs.close();
   if (visThread.joinable()) visThread.join();
   visible.close();
   if (renderThread.joinable()) renderThread.join();
+  if (lost) std::rethrow_exception(lost);
   if (!go) return 1;
   comm.send(0, Tag::Bye, {});
   return failure.failed() ? 1 : 0;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <new>
+#include <sstream>
 
 #include "atomic_file.h"
 #include "error.h"
@@ -242,6 +243,28 @@ void flipRowsInPlace(Image& image) {
   DMMR_CHECK(image.consistent());
   for (int top = 0, bottom = image.height - 1; top < bottom; ++top, --bottom)
     std::swap_ranges(image.row(top), image.row(top) + image.rowBytes(), image.row(bottom));
+}
+
+void placeRgbRegion(Image& frame, const Rect& r, std::span<const uint8_t> rgb) {
+  DMMR_CHECK(frame.consistent());
+  if (!insideFrame(r, frame.width, frame.height)) {
+    std::ostringstream os;
+    os << "region " << r << " is not inside the " << frame.width << "x" << frame.height << " frame";
+    throw Error(os.str());
+  }
+  if (uint64_t(rgb.size()) != uint64_t(r.area()) * 3)
+    throw Error("sub-frame holds " + std::to_string(rgb.size()) + " bytes, its region " +
+                std::to_string(r.area() * 3));
+  for (int y = 0; y < r.h; ++y) {
+    uint8_t* dst = frame.pixel(r.x, frame.height - 1 - (r.y + y));
+    const uint8_t* src = rgb.data() + size_t(y) * size_t(r.w) * 3;
+    for (int x = 0; x < r.w; ++x, dst += 4, src += 3) {
+      dst[0] = src[0];
+      dst[1] = src[1];
+      dst[2] = src[2];
+      dst[3] = 255;
+    }
+  }
 }
 
 }  // namespace dmmr

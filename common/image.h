@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "math.h"
+
 namespace dmmr {
 
 // Pixels are RGBA, 4 bytes each, rows stored top row first (as in PNG; GL
@@ -61,5 +63,12 @@ Image readPng(const std::string& path);
 // top-down and back. Requires a consistent image.
 Image flipRows(const Image& image);
 void flipRowsInPlace(Image& image);
+
+// Copies a sub-frame into `frame`: `rgb` holds region.w x region.h RGB8
+// pixels, rows bottom first as GL reads them back, with region in GL's
+// coordinates (origin bottom-left); alpha becomes 255. The region comes from
+// a peer: throws Error when it is not inside the frame (checked in 64-bit)
+// or `rgb` does not hold exactly its pixels, and writes nothing then.
+void placeRgbRegion(Image& frame, const Rect& region, std::span<const uint8_t> rgb);
 
 }  // namespace dmmr

@@ -137,4 +137,12 @@ struct Rect {
 };
 std::ostream& operator<<(std::ostream& os, const Rect& r);
 
+// Whether `r` has no negative size and lies within a width x height frame,
+// in 64-bit arithmetic: a peer's region near INT_MAX must fail the check,
+// not overflow past it (x + w in int is undefined there).
+inline bool insideFrame(const Rect& r, int width, int height) {
+  return r.x >= 0 && r.y >= 0 && r.w >= 0 && r.h >= 0 && int64_t(r.x) + r.w <= width &&
+         int64_t(r.y) + r.h <= height;
+}
+
 }  // namespace dmmr

@@ -1,5 +1,7 @@
 #include "protocol.h"
 
+#include <cmath>
+
 #include "bytes.h"
 #include "error.h"
 
@@ -37,7 +39,7 @@ std::vector<uint8_t> encodeJob(const FrameJob& j) {
   return std::move(w.bytes());
 }
 
-FrameJob decodeJob(const std::vector<uint8_t>& bytes) {
+FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count) {
   ByteReader r(bytes.data(), bytes.size(), "Job message");
   FrameJob j;
   j.frame = r.u32("frame");
@@ -45,11 +47,23 @@ FrameJob decodeJob(const std::vector<uint8_t>& bytes) {
   for (double* v : {&c.eye.x, &c.eye.y, &c.eye.z, &c.rotation.x, &c.rotation.y, &c.rotation.z,
                     &c.rotation.w, &c.fovy_deg, &c.aspect, &c.near})
     *v = r.f64("camera");
+  for (double v : {c.eye.x, c.eye.y, c.eye.z, c.rotation.x, c.rotation.y, c.rotation.z,
+                   c.rotation.w, c.fovy_deg, c.aspect, c.near})
+    if (!std::isfinite(v)) r.fail("camera value is not finite");
+  if (!(c.fovy_deg > 0 && c.fovy_deg < 180)) r.fail("field of view outside (0, 180) degrees");
+  if (!(c.aspect > 0) || !(c.near > 0)) r.fail("aspect or near plane not positive");
+  if (c.rotation.x == 0 && c.rotation.y == 0 && c.rotation.z == 0 && c.rotation.w == 0)
+    r.fail("zero rotation");
   j.width = r.i32("width");
   j.height = r.i32("height");
   if (j.width <= 0 || j.height <= 0) r.fail("bad frame size");
   j.region = getRect(r);
+  if (!insideFrame(j.region, j.width, j.height)) r.fail("region outside the frame");
   r.array(&j.objects, r.u32("object count"), "objects");
+  for (size_t i = 0; i < j.objects.size(); ++i) {
+    if (j.objects[i] >= object_count) r.fail("object index beyond the scene's objects");
+    if (i > 0 && j.objects[i] <= j.objects[i - 1]) r.fail("object indices not ascending");
+  }
   uint8_t flush = r.u8("flush");
   if (flush > 1) r.fail("flush is neither 0 nor 1");
   j.flush = flush == 1;

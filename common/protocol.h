@@ -65,7 +65,13 @@ struct SubFrame {
 };
 
 std::vector<uint8_t> encodeJob(const FrameJob& j);
-FrameJob decodeJob(const std::vector<uint8_t>& bytes);
+// Decodes a Job for a scene of `object_count` objects. A job is a peer's
+// input, and clients index the scene with it: throws Error (naming the
+// message) unless its objects ascend strictly below `object_count`, its
+// region lies inside its frame, and its camera is finite with a field of
+// view in (0, 180) degrees, positive aspect and near, and a non-zero
+// rotation.
+FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count);
 std::vector<uint8_t> encodeSubFrame(const SubFrame& s);
 SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes);
 // A SubFrame message: one or more sub-frames (a client's batch of tiles).

@@ -1,8 +1,15 @@
 #include "stats_csv.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
+#include "atomic_file.h"
 #include "error.h"
 
 namespace dmmr {
@@ -10,8 +17,11 @@ namespace dmmr {
 std::string resumeStatsCsv(const std::string& path, const std::string& header,
                            uint32_t from_frame) {
   if (from_frame == 0 || path.empty() || !std::filesystem::exists(path)) return header;
-  std::ifstream in(path);
-  if (!in) throw Error(fileError(path, "cannot be read to resume its stats"));
+  std::ifstream file(path);
+  if (!file) throw Error(fileError(path, "cannot be read to resume its stats"));
+  std::string text{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+  if (size_t end = text.rfind('\n'); end != std::string::npos) text.resize(end + 1);  // torn row
+  std::istringstream in(text);
   std::string line, out = header;
   std::getline(in, line);
   if (line + "\n" != header)
@@ -27,6 +37,31 @@ std::string resumeStatsCsv(const std::string& path, const std::string& header,
     if (std::stoull(first) < from_frame) out += line + "\n";
   }
   return out;
+}
+
+StatsCsvAppender::StatsCsvAppender(const std::string& path, const std::string& start)
+    : path_(path) {
+  if (path_.empty()) return;
+  writeFileAtomic(path_, start);
+  fd_ = ::open(path_.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fd_ < 0) throw Error(fileError(path_, std::string("cannot open: ") + std::strerror(errno)));
+}
+
+StatsCsvAppender::~StatsCsvAppender() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void StatsCsvAppender::append(const std::string& row) {
+  if (fd_ < 0) return;
+  const char* p = row.data();
+  size_t left = row.size();
+  while (left > 0) {
+    ssize_t n = ::write(fd_, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(fileError(path_, std::string("write failed: ") + std::strerror(errno)));
+    p += n;
+    left -= size_t(n);
+  }
 }
 
 }  // namespace dmmr

@@ -1,13 +1,17 @@
 #include "server.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -15,6 +19,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "guarded.h"
 #include "image.h"
 #include "plan.h"
 #include "protocol.h"
@@ -27,6 +32,15 @@ namespace dmmr {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Test hook: DMMR_INJECT_FAULT=server:WHAT, WHAT being send:FRAME (sending
+// that frame's jobs fails) or send-record (the planner records a frame's
+// send time while the assembler finishes it: the race TSan must not see).
+bool injectedServerFault(const char* what) {
+  static const char* spec = std::getenv("DMMR_INJECT_FAULT");
+  return spec && std::strncmp(spec, "server:", 7) == 0 && std::strcmp(spec + 7, what) == 0;
+}
+
 double msBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
@@ -62,15 +76,10 @@ std::string statsHeader(int clients) {
 class Assembler {
  public:
   // `planner`, when given, hears which objects the clients drew.
-  // `csv`: the stats CSV so far (its header, and rows kept from a resumed run).
+  // `csv`: the stats CSV, each finished frame's row appended.
   Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames,
-            FramePlanner* planner, std::string csv)
-      : comm_(comm),
-        opts_(opts),
-        clients_(clients),
-        frames_(frames),
-        planner_(planner),
-        csv_(std::move(csv)) {
+            FramePlanner* planner, StatsCsvAppender& csv)
+      : comm_(comm), opts_(opts), clients_(clients), frames_(frames), planner_(planner), csv_(csv) {
     assembled_ = opts.from_frame;
     last_done_ = Clock::now();
   }
@@ -114,37 +123,61 @@ class Assembler {
     return !failed_;
   }
 
+  // Receives until every frame is assembled. After a failure (a client's
+  // Error, a bad message, a send error recorded by the planner) it keeps
+  // receiving until the planning thread has stopped: a healthy client may
+  // be blocked sending a sub-frame while the planner is blocked sending it
+  // a job, and only a receive here frees both. What arrives is still
+  // assembled: a frame whose sub-frames all come is finished work, and is
+  // written (late() does the same during the shutdown). client_timeout_s
+  // without any message ends the run either way (silent).
   void run() {
-    try {
-      while (assembled_ < frames_) {
-        std::optional<Message> got = comm_.recvFor(kAnySource, opts_.client_timeout_s);
-        if (!got) silent();  // does not return
-        Message& m = *got;
-        if (m.tag == Tag::Error) {
-          fail("client " + std::to_string(m.source) + ": " + decodeText(m.bytes));
-          return;
-        }
-        if (m.tag != Tag::SubFrame)
-          throw Error(std::string("unexpected ") + tagName(m.tag) + " message from rank " +
-                      std::to_string(m.source));
-        for (const SubFrame& sf : decodeSubFrames(m.bytes)) {
-          accept(m.source, sf);
-          if (on_sub_frame_) on_sub_frame_(m.source, sf.frame);
-        }
+    auto last = Clock::now();
+    for (;;) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        if (failed_ ? planner_done_ : assembled_ >= frames_) return;
       }
+      std::optional<Message> got = comm_.recvFor(kAnySource, kPollS);
+      if (!got) {
+        if (msBetween(last, Clock::now()) > opts_.client_timeout_s * 1000) silent();
+        continue;
+      }
+      last = Clock::now();
+      late(*got);
+    }
+  }
+
+  // A message after the last frame was planned, or after a failure; any
+  // error in it becomes the run's failure (the first one is reported).
+  void late(const Message& m) {
+    try {
+      handle(m);
     } catch (const std::exception& e) {
       fail(std::string("server: ") + e.what());
     }
   }
 
-  // No message for client_timeout_s while sub-frames are owed: names the
-  // clients that owe the oldest frame and ends the job (an orderly shutdown
-  // would wait for them forever). Every frame assembled so far is on disk.
+  // Planning thread: no more jobs will be sent.
+  void plannerDone() {
+    std::lock_guard<std::mutex> lock(mu_);
+    planner_done_ = true;
+  }
+  // Planning thread: about to send to `client` (0: not sending), so that a
+  // send that never completes can be blamed on the right client.
+  void sendingTo(int client) { sending_to_.store(client); }
+
+  // No message for client_timeout_s while sub-frames are owed, or while the
+  // planner is blocked after a failure: names the clients that owe the
+  // oldest frame (or the one the planner is sending to) and ends the job (an
+  // orderly shutdown would wait for them forever). Every frame assembled so
+  // far is on disk.
   [[noreturn]] void silent() {
-    std::string who, owed;
+    std::string who, owed, failure;
     uint32_t frame = 0;
     {
       std::lock_guard<std::mutex> lock(mu_);
+      if (failed_) failure = " after the run failed (" + error_ + ")";
       if (!pending_.empty()) {
         frame = pending_.begin()->first;
         const FrameRecord& rec = pending_.begin()->second;
@@ -156,14 +189,25 @@ class Assembler {
                     std::to_string(k);
           }
       }
+      if (int k = sending_to_.load(); k > 0 && failed_)
+        who = "client " + std::to_string(k) + " (rank " + std::to_string(k) + ")";
     }
     std::fprintf(stderr,
                  "\ndmmr-render: server (rank 0): %s sent nothing for %.0f s while frame %u "
-                 "waited for it (sub-frames owed: %s): it died or hangs; aborting the run "
+                 "waited for it (sub-frames owed: %s)%s: it died or hangs; aborting the run "
                  "(%u frames assembled and written)\n",
                  who.empty() ? "no client" : who.c_str(), opts_.client_timeout_s, frame,
-                 owed.empty() ? "none" : owed.c_str(), assembled_);
+                 owed.empty() ? "none" : owed.c_str(), failure.c_str(), assembled_.load());
     comm_.abort(3);
+  }
+
+  // Test hook (DMMR_INJECT_FAULT=server:send-record): true once every
+  // sub-frame of `frame` is in, so that the send time lands while the
+  // assembler finishes the frame.
+  bool receivedAll(uint32_t frame) const {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = pending_.find(frame);
+    return it == pending_.end() || it->second.received == it->second.expected;
   }
 
   void setSendMs(uint32_t frame, double ms) {
@@ -181,15 +225,34 @@ class Assembler {
   const std::string& error() const { return error_; }
 
  private:
+  static constexpr double kPollS = 0.05;  // how often a waiting receive checks for a failure
+
+  void handle(const Message& m) {
+    if (m.tag == Tag::Error) {
+      fail("client " + std::to_string(m.source) + ": " + decodeText(m.bytes));
+      return;
+    }
+    if (m.tag != Tag::SubFrame)
+      throw Error(std::string("unexpected ") + tagName(m.tag) + " message from rank " +
+                  std::to_string(m.source));
+    for (const SubFrame& sf : decodeSubFrames(m.bytes)) {
+      accept(m.source, sf);
+      // After a failure no more tiles go out: the run is winding down.
+      if (on_sub_frame_ && !failed()) on_sub_frame_(m.source, sf.frame);
+    }
+  }
+
   void accept(int rank, const SubFrame& sf) {
     auto t0 = Clock::now();
     FrameRecord* rec;
     {
       std::lock_guard<std::mutex> lock(mu_);
       auto it = pending_.find(sf.frame);
-      if (it == pending_.end())
+      if (it == pending_.end()) {
+        if (failed_) return;  // a frame begun after the failure and never completed
         throw Error("rank " + std::to_string(rank) + " sent frame " + std::to_string(sf.frame) +
                     ", which is not in flight");
+      }
       rec = &it->second;
       // Under the lock: the dynamic dealer adds to `owed` from other threads.
       if (rank < 1 || rank > clients_ || rec->owed[size_t(rank - 1)] <= 0)
@@ -197,27 +260,33 @@ class Assembler {
                     std::to_string(sf.frame) + " it was not given");
       --rec->owed[size_t(rank - 1)];
     }
-    const Rect& r = sf.region;
-    if (r.x < 0 || r.y < 0 || r.x1() > rec->image.width || r.y1() > rec->image.height)
+    if (!insideFrame(sf.region, rec->image.width, rec->image.height))
       throw Error("rank " + std::to_string(rank) + " sent a region outside the frame");
     std::vector<uint8_t> rgb = decompress(sf.codec, sf.data.data(), sf.data.size(), sf.raw_size);
-    for (int y = 0; y < r.h; ++y) {  // GL rows (bottom first) into image rows (top first)
-      uint8_t* dst = rec->image.pixel(r.x, rec->image.height - 1 - (r.y + y));
-      const uint8_t* src = rgb.data() + size_t(y) * size_t(r.w) * 3;
-      for (int x = 0; x < r.w; ++x, dst += 4, src += 3) {
-        dst[0] = src[0];
-        dst[1] = src[1];
-        dst[2] = src[2];
-        dst[3] = 255;
-      }
-    }
+    placeRgbRegion(rec->image, sf.region, rgb);
     accumulate(rec->clients[size_t(rank - 1)], sf.stats);
     if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
-    if (++rec->received == rec->expected) finishFrame(sf.frame, *rec);
+    bool complete;
+    {
+      std::lock_guard<std::mutex> lock(mu_);  // receivedAll reads it
+      complete = ++rec->received == rec->expected;
+    }
+    if (complete) finishFrame(sf.frame);
   }
 
-  void finishFrame(uint32_t frame, FrameRecord& rec) {
+  void finishFrame(uint32_t frame) {
+    if (injectedServerFault("send-record"))  // widen the window the send time raced into
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    // The record leaves the map under the lock: the planning thread's
+    // setSendMs writes it under the same lock, so the row reads a settled
+    // value, and a later setSendMs finds no record.
+    FrameRecord rec;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto node = pending_.extract(frame);
+      rec = std::move(node.mapped());
+    }
     auto tw = Clock::now();
     writePng(opts_.out + "/" + frameFileName(frame), rec.image);
     auto done = Clock::now();
@@ -234,13 +303,11 @@ class Assembler {
           << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent << "," << c.gpu_hits << ","
           << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
           << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident;
-    csv_ += row.str() + "\n";
-    if (!opts_.stats.empty()) writeFileAtomic(opts_.stats, csv_);  // flushed frame by frame
+    csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
     last_done_ = done;
     if (opts_.progress) std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
-    std::lock_guard<std::mutex> lock(mu_);
-    pending_.erase(frame);
     assemble_ms_.erase(frame);
+    std::lock_guard<std::mutex> lock(mu_);
     ++assembled_;
     cv_.notify_all();
   }
@@ -262,10 +329,11 @@ class Assembler {
   std::condition_variable cv_;
   std::map<uint32_t, FrameRecord> pending_;
   std::map<uint32_t, double> assemble_ms_;
-  uint32_t assembled_ = 0;
-  bool failed_ = false;
+  std::atomic<uint32_t> assembled_{0};  // written under mu_; silent() reads it without
+  bool failed_ = false, planner_done_ = false;
+  std::atomic<int> sending_to_{0};
   std::string error_;
-  std::string csv_;
+  StatsCsvAppender& csv_;
   Clock::time_point last_done_;
 };
 
@@ -345,8 +413,10 @@ double measureRoundTripMs(Comm& comm, int clients) {
 }
 
 // Tells every client to stop and waits until each has said Bye, receiving
-// (and dropping) whatever they still send, so no rank is left blocked.
-void shutdownClients(Comm& comm, int clients, double timeout_s) {
+// whatever they still send (handed to `late`, or dropped), so no rank is
+// left blocked.
+void shutdownClients(Comm& comm, int clients, double timeout_s,
+                     const std::function<void(const Message&)>& late = {}) {
   for (int k = 1; k <= clients; ++k) comm.send(k, Tag::Shutdown, {});
   std::vector<uint8_t> bye(size_t(clients) + 1, 0);
   for (int byes = 0; byes < clients;) {
@@ -364,6 +434,8 @@ void shutdownClients(Comm& comm, int clients, double timeout_s) {
     if (m->tag == Tag::Bye && !bye[size_t(m->source)]) {
       bye[size_t(m->source)] = 1;
       ++byes;
+    } else if (m->tag != Tag::Bye && late) {
+      late(*m);
     }
   }
 }
@@ -380,7 +452,8 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   Scene scene;
   Walkthrough path;
-  std::string problem, csv;
+  std::string problem;
+  std::unique_ptr<StatsCsvAppender> csv;
   try {
     scene = loadScene(opts.scene);
     path = readWalkthrough(opts.walkthrough);
@@ -388,7 +461,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
                   opts.walkthrough + " (" + std::to_string(path.points.size()) + " frames)");
     std::filesystem::create_directories(opts.out);
-    csv = resumeStatsCsv(opts.stats, statsHeader(clients), opts.from_frame);
+    // Created here, before the clients are told to go: a stats file that
+    // cannot be written stops the run before any work is done.
+    csv = std::make_unique<StatsCsvAppender>(
+        opts.stats, resumeStatsCsv(opts.stats, statsHeader(clients), opts.from_frame));
   } catch (const std::exception& e) {
     problem = e.what();
   }
@@ -399,11 +475,30 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     return 1;
   }
   // Every client reports whether it is ready (scene, context, renderer).
+  // A client that never answers (stuck loading or creating its context)
+  // ends the run after --client-timeout, named; the others wait in the
+  // broadcast below, so only an abort ends them.
   std::map<int, std::string> problems;
+  std::vector<bool> answered(size_t(clients) + 1, false);
   for (int k = 0; k < clients; ++k) {
-    Message m = comm.recv(kAnySource);
-    if (m.tag != Tag::Hello) throw Error(std::string("expected Hello, got ") + tagName(m.tag));
-    if (!m.bytes.empty()) problems[m.source] = decodeText(m.bytes);
+    std::optional<Message> m = comm.recvFor(kAnySource, opts.client_timeout_s);
+    if (!m) {
+      std::string who;
+      for (int c = 1; c <= clients; ++c)
+        if (!answered[size_t(c)])
+          who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(c) +
+                 " (rank " + std::to_string(c) + ")";
+      std::fprintf(stderr,
+                   "dmmr-render: server (rank 0): %s did not say whether it is ready within "
+                   "%.0f s (--client-timeout): it died or hangs while starting; aborting\n",
+                   who.c_str(), opts.client_timeout_s);
+      comm.abort(3);
+    }
+    answered[size_t(m->source)] = true;
+    if (m->tag != Tag::Hello)
+      problems[m->source] = std::string("sent ") + tagName(m->tag) + " before saying Hello";
+    else if (!m->bytes.empty())
+      problems[m->source] = decodeText(m->bytes);
   }
   int go = problems.empty() ? 1 : 0;
   comm.broadcast(0, &go);
@@ -419,7 +514,14 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   // then the fastest (BalanceTrial).
   std::optional<BalanceTrial> trial;
   if (opts.balance == Balance::Auto) {
-    double rtt = measureRoundTripMs(comm, clients);
+    double rtt = 0;
+    try {
+      rtt = measureRoundTripMs(comm, clients);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "dmmr-render: server (rank 0): %s\n", e.what());
+      shutdownClients(comm, clients, opts.client_timeout_s);
+      return 1;
+    }
     trial.emplace(
         std::vector<Balance>{Balance::Frustum, Balance::TilesStatic, Balance::TilesDynamic}, 1, 3);
     std::fprintf(stderr,
@@ -429,86 +531,111 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   FramePlanner planner(scene);
   Assembler assembler(comm, opts, clients, path.points.size(),
-                      opts.visible_weights ? &planner : nullptr, std::move(csv));
+                      opts.visible_weights ? &planner : nullptr, *csv);
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
   assembler.onSubFrame([&](int client, uint32_t frame) { dispatcher.returned(client, frame); });
-  std::thread assembling([&] { assembler.run(); });
+  std::thread assembling([&] {
+    runGuarded([&] { assembler.run(); },
+               [&](const std::string& what) { assembler.markFailed("server: " + what); });
+  });
   auto nowMs = [] {
     return std::chrono::duration<double, std::milli>(Clock::now().time_since_epoch()).count();
   };
-  for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
-    uint32_t i = f - opts.from_frame;
-    if (trial && trial->boundary(i)) {
-      if (!assembler.waitAssembled(f)) break;
-      trial->blockBoundary(i, nowMs());
-      if (trial->decided()) {
-        std::string times;
-        for (size_t c = 0; c < trial->candidates().size(); ++c)
-          times += std::string(c ? ", " : "") + balanceName(trial->candidates()[c]) + " " +
-                   std::to_string(int(trial->blockMs()[c] + 0.5)) + " ms";
-        std::fprintf(stderr, "dmmr-render: --balance auto: %s per frame: %s from frame %u\n",
-                     times.c_str(), balanceName(trial->winner()), f);
+  // Everything the planning thread does is inside the try: an exception
+  // ends the run through the assembler, never as std::terminate of a
+  // joinable thread.
+  try {
+    for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
+      uint32_t i = f - opts.from_frame;
+      if (trial && trial->boundary(i)) {
+        if (!assembler.waitAssembled(f)) break;
+        trial->blockBoundary(i, nowMs());
+        if (trial->decided()) {
+          std::string times;
+          for (size_t c = 0; c < trial->candidates().size(); ++c)
+            times += std::string(c ? ", " : "") + balanceName(trial->candidates()[c]) + " " +
+                     std::to_string(int(trial->blockMs()[c] + 0.5)) + " ms";
+          std::fprintf(stderr, "dmmr-render: --balance auto: %s per frame: %s from frame %u\n",
+                       times.c_str(), balanceName(trial->winner()), f);
+        }
       }
-    }
-    if (!assembler.waitForRoom(f)) break;
-    Balance balance = trial ? trial->strategy(i) : opts.balance;
-    FrameRecord rec;
-    rec.started = Clock::now();
-    Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
-    planner.planningFrame(f);
-    // Each job, with the client it goes to (-1: the dispatcher decides).
-    std::vector<std::pair<int, FrameJob>> jobs;
-    if (balance == Balance::Frustum) {
-      FramePlan plan = planner.plan(cam, v.width, v.height, clients);
-      rec.cull_ms = plan.cull_ms;
-      rec.divide_ms = plan.divide_ms;
-      rec.objects = plan.objects_in_frustum;
-      rec.triangles = plan.triangles_in_frustum;
-      for (int k = 0; k < clients; ++k)
-        jobs.push_back({k + 1, FrameJob{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
-                                        std::move(plan.regions[size_t(k)].objects)}});
-    } else {
-      TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
-      rec.cull_ms = plan.cull_ms;
-      rec.divide_ms = plan.divide_ms;
-      rec.objects = plan.objects_in_frustum;
-      rec.triangles = plan.triangles_in_frustum;
-      auto job = [&](size_t t) {
-        return FrameJob{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
-      };
-      if (balance == Balance::TilesStatic) {
-        auto dealt = dealTiles(plan.tiles.size(), plan.columns, clients, opts.tile_order);
+      if (!assembler.waitForRoom(f)) break;
+      Balance balance = trial ? trial->strategy(i) : opts.balance;
+      FrameRecord rec;
+      rec.started = Clock::now();
+      Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
+      planner.planningFrame(f);
+      // Each job, with the client it goes to (-1: the dispatcher decides).
+      std::vector<std::pair<int, FrameJob>> jobs;
+      if (balance == Balance::Frustum) {
+        FramePlan plan = planner.plan(cam, v.width, v.height, clients);
+        rec.cull_ms = plan.cull_ms;
+        rec.divide_ms = plan.divide_ms;
+        rec.objects = plan.objects_in_frustum;
+        rec.triangles = plan.triangles_in_frustum;
         for (int k = 0; k < clients; ++k)
-          for (size_t i = 0; i < dealt[size_t(k)].size(); ++i) {
-            jobs.push_back({k + 1, job(dealt[size_t(k)][i])});
-            jobs.back().second.flush = i + 1 == dealt[size_t(k)].size();  // one batch back
-          }
+          jobs.push_back({k + 1, FrameJob{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
+                                          std::move(plan.regions[size_t(k)].objects)}});
       } else {
-        for (size_t t = 0; t < plan.tiles.size(); ++t) jobs.push_back({-1, job(t)});
+        TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
+        rec.cull_ms = plan.cull_ms;
+        rec.divide_ms = plan.divide_ms;
+        rec.objects = plan.objects_in_frustum;
+        rec.triangles = plan.triangles_in_frustum;
+        auto job = [&](size_t t) {
+          return FrameJob{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
+        };
+        if (balance == Balance::TilesStatic) {
+          auto dealt = dealTiles(plan.tiles.size(), plan.columns, clients, opts.tile_order);
+          for (int k = 0; k < clients; ++k)
+            for (size_t i = 0; i < dealt[size_t(k)].size(); ++i) {
+              jobs.push_back({k + 1, job(dealt[size_t(k)][i])});
+              jobs.back().second.flush = i + 1 == dealt[size_t(k)].size();  // one batch back
+            }
+        } else {
+          for (size_t t = 0; t < plan.tiles.size(); ++t) jobs.push_back({-1, job(t)});
+        }
       }
-    }
-    std::vector<int> owed(size_t(clients), 0);
-    for (const auto& [k, j] : jobs)
-      if (k > 0) ++owed[size_t(k - 1)];
-    auto ts = Clock::now();
-    assembler.begin(f, std::move(rec), std::move(owed), int(jobs.size()));
-    try {
+      std::vector<int> owed(size_t(clients), 0);
+      for (const auto& [k, j] : jobs)
+        if (k > 0) ++owed[size_t(k - 1)];
+      auto ts = Clock::now();
+      assembler.begin(f, std::move(rec), std::move(owed), int(jobs.size()));
+      if (injectedServerFault(("send:" + std::to_string(f)).c_str()))
+        throw Error("fault injected by DMMR_INJECT_FAULT sending frame " + std::to_string(f));
       if (balance == Balance::TilesDynamic) {
         std::vector<FrameJob> pool;
         for (auto& [k, j] : jobs) pool.push_back(std::move(j));
         dispatcher.add(std::move(pool));
       } else {
-        for (auto& [k, j] : jobs) comm.send(k, Tag::Job, encodeJob(j));
+        // A frame of static tiles is many jobs per client: stop at a failure
+        // rather than send the rest to clients that are winding down.
+        for (auto& [k, j] : jobs) {
+          if (assembler.failed()) break;
+          assembler.sendingTo(k);
+          comm.send(k, Tag::Job, encodeJob(j));
+        }
+        assembler.sendingTo(0);
       }
-    } catch (const std::exception& e) {
-      assembler.markFailed(std::string("server: ") + e.what());
-      break;
+      double send_ms = msBetween(ts, Clock::now());
+      if (injectedServerFault("send-record")) {
+        auto deadline = Clock::now() + std::chrono::seconds(5);
+        while (!assembler.receivedAll(f) && Clock::now() < deadline)
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));  // inside finishFrame's sleep
+      }
+      assembler.setSendMs(f, send_ms);
     }
-    assembler.setSendMs(f, msBetween(ts, Clock::now()));
+  } catch (const std::exception& e) {
+    assembler.markFailed(std::string("server: ") + e.what());
   }
+  assembler.plannerDone();
   assembling.join();
   if (opts.progress) std::fprintf(stderr, "\n");
-  shutdownClients(comm, clients, opts.client_timeout_s);
+  // Sub-frames still on their way complete frames that every client
+  // finished before a failure.
+  shutdownClients(comm, clients, opts.client_timeout_s,
+                  [&](const Message& m) { assembler.late(m); });
   if (assembler.failed()) {
     std::fprintf(stderr, "dmmr-render: %s\n", assembler.error().c_str());
     return 1;

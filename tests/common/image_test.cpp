@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "compare.h"
 #include "error.h"
 #include "image.h"
+#include "test_support.h"
 
 namespace dmmr {
 namespace {
@@ -347,4 +349,46 @@ TEST_F(CompareDirTest, NoFramesThrows) {
 }
 
 }  // namespace
+}  // namespace dmmr
+
+namespace dmmr {
+
+// A sub-frame lands flipped (GL rows bottom first) at its place, alpha 255.
+TEST(PlaceRgbRegion, CopiesASubFrameFlippedIntoPlace) {
+  Image frame = Image::blank(4, 3);
+  std::vector<uint8_t> rgb;
+  for (int i = 0; i < 2 * 2 * 3; ++i) rgb.push_back(uint8_t(10 + i));
+  placeRgbRegion(frame, Rect{1, 0, 2, 2}, rgb);  // GL rows 0, 1: image rows 2, 1
+  EXPECT_EQ(std::vector<uint8_t>(frame.pixel(1, 2), frame.pixel(1, 2) + 4),
+            (std::vector<uint8_t>{10, 11, 12, 255}));
+  EXPECT_EQ(std::vector<uint8_t>(frame.pixel(2, 1), frame.pixel(2, 1) + 4),
+            (std::vector<uint8_t>{19, 20, 21, 255}));
+  EXPECT_EQ(frame.pixel(0, 0)[3], 0) << "outside the region: untouched";
+  EXPECT_EQ(frame.pixel(3, 2)[3], 0);
+}
+
+// A peer's region near INT_MAX: x + w overflows int. The old check
+// (`x + w > width` in int) let it through and the copy wrote outside the
+// image; now it is an Error and nothing is written (ASan covers the suite).
+TEST(PlaceRgbRegion, RejectsARegionWhoseEndOverflowsInt) {
+  Image frame = Image::blank(64, 48);
+  const Image before = frame;
+  constexpr int kMax = std::numeric_limits<int>::max();
+  std::vector<uint8_t> rgb(size_t(100) * 3, 7);
+  std::string e = test::errorOf([&] { placeRgbRegion(frame, Rect{kMax - 10, 0, 100, 1}, rgb); });
+  EXPECT_NE(e.find("not inside the 64x48 frame"), std::string::npos) << e;
+  EXPECT_NE(test::errorOf([&] { placeRgbRegion(frame, Rect{0, kMax - 1, 100, 1}, rgb); }), "");
+  EXPECT_EQ(frame, before);
+}
+
+TEST(PlaceRgbRegion, RejectsPixelsThatDoNotFillTheRegion) {
+  Image frame = Image::blank(8, 8);
+  std::vector<uint8_t> rgb(size_t(4) * 4 * 3 - 1);
+  EXPECT_NE(test::errorOf([&] {
+              placeRgbRegion(frame, Rect{0, 0, 4, 4}, rgb);
+            }).find("bytes"),
+            std::string::npos);
+  EXPECT_NE(test::errorOf([&] { placeRgbRegion(frame, Rect{6, 6, 4, 4}, rgb); }), "");
+}
+
 }  // namespace dmmr

@@ -678,3 +678,30 @@ TEST(EntryDepthTest, EyeInsideASlabSetsNoBoundForThatAxis) {
 
 }  // namespace
 }  // namespace dmmr
+
+namespace dmmr {
+
+TEST(InsideFrame, AcceptsRegionsWithinTheFrameUpToItsEdges) {
+  EXPECT_TRUE(insideFrame(Rect{0, 0, 640, 480}, 640, 480));
+  EXPECT_TRUE(insideFrame(Rect{639, 479, 1, 1}, 640, 480));
+  EXPECT_TRUE(insideFrame(Rect{640, 480, 0, 0}, 640, 480));  // empty, at the corner
+}
+
+TEST(InsideFrame, RejectsRegionsOutsideOrNegative) {
+  EXPECT_FALSE(insideFrame(Rect{-1, 0, 10, 10}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{0, 0, 641, 10}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{0, 475, 10, 6}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{0, 0, -5, 10}, 640, 480));
+}
+
+// x + w near INT_MAX: in int it overflows (undefined; in practice it wraps
+// negative and passed the server's old `x1() > width` check).
+TEST(InsideFrame, RejectsRegionsWhoseEndOverflowsInt) {
+  constexpr int kMax = std::numeric_limits<int>::max();
+  EXPECT_FALSE(insideFrame(Rect{kMax - 10, 0, 100, 1}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{0, kMax, 1, kMax}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{kMax, kMax, kMax, kMax}, 640, 480));
+  EXPECT_FALSE(insideFrame(Rect{10, 10, kMax, 1}, 640, 480));
+}
+
+}  // namespace dmmr

@@ -2,12 +2,17 @@
 // message can be malformed (they come over the network: never a crash).
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "error.h"
 #include "protocol.h"
 
 using namespace dmmr;
 
 namespace {
+
+// The sample job's scene: its highest object index is the last one.
+constexpr size_t kObjects = 4000000001u;
 
 FrameJob sampleJob() {
   FrameJob j;
@@ -38,7 +43,7 @@ SubFrame sampleSubFrame(uint32_t frame, Rect r) {
 std::string errorOf(const std::vector<uint8_t>& bytes, bool job) {
   try {
     if (job)
-      decodeJob(bytes);
+      decodeJob(bytes, kObjects);
     else
       decodeSubFrames(bytes);
   } catch (const Error& e) {
@@ -51,9 +56,65 @@ std::string errorOf(const std::vector<uint8_t>& bytes, bool job) {
 
 TEST(Protocol, JobRoundTripsWithItsFlushFlag) {
   FrameJob j = sampleJob();
-  EXPECT_EQ(decodeJob(encodeJob(j)), j);
+  EXPECT_EQ(decodeJob(encodeJob(j), kObjects), j);
   j.flush = true;
-  EXPECT_EQ(decodeJob(encodeJob(j)), j);
+  EXPECT_EQ(decodeJob(encodeJob(j), kObjects), j);
+}
+
+// What a client indexes with a job's contents is checked at decoding.
+std::string jobError(const FrameJob& j, size_t objects = kObjects) {
+  try {
+    decodeJob(encodeJob(j), objects);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Protocol, JobRejectsAnObjectBeyondTheScene) {
+  FrameJob j = sampleJob();
+  EXPECT_NE(jobError(j, 4000000000u).find("beyond the scene"), std::string::npos);
+  j.objects = {0, 1, 2};
+  EXPECT_EQ(jobError(j, 3), "");
+  EXPECT_NE(jobError(j, 2).find("beyond the scene"), std::string::npos);
+}
+
+TEST(Protocol, JobRejectsObjectsNotAscending) {
+  FrameJob j = sampleJob();
+  j.objects = {1, 5, 5};
+  EXPECT_NE(jobError(j).find("not ascending"), std::string::npos);
+  j.objects = {5, 1};
+  EXPECT_NE(jobError(j).find("not ascending"), std::string::npos);
+}
+
+TEST(Protocol, JobRejectsARegionOutsideItsFrame) {
+  FrameJob j = sampleJob();
+  j.region = {600, 0, 41, 10};  // one column past 640
+  EXPECT_NE(jobError(j).find("region outside the frame"), std::string::npos);
+  j.region = {std::numeric_limits<int>::max() - 5, 0, 100, 1};  // x + w overflows int
+  EXPECT_NE(jobError(j).find("region outside the frame"), std::string::npos);
+  j.region = {0, 0, 640, 480};
+  EXPECT_EQ(jobError(j), "");
+}
+
+TEST(Protocol, JobRejectsACameraThatCannotProject) {
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  for (auto [spoil, what] : std::vector<std::pair<void (*)(Camera&), std::string>>{
+           {[](Camera& c) { c.eye.y = nan; }, "not finite"},
+           {[](Camera& c) { c.rotation.w = inf; }, "not finite"},
+           {[](Camera& c) { c.fovy_deg = 180; }, "field of view"},
+           {[](Camera& c) { c.fovy_deg = 0; }, "field of view"},
+           {[](Camera& c) { c.aspect = -1; }, "not positive"},
+           {[](Camera& c) { c.near = 0; }, "not positive"},
+           {[](Camera& c) {
+              c.rotation = Quatd{0, 0, 0, 0};
+            },
+            "zero rotation"}}) {
+    FrameJob j = sampleJob();
+    spoil(j.camera);
+    EXPECT_NE(jobError(j).find(what), std::string::npos) << what << ": " << jobError(j);
+  }
 }
 
 TEST(Protocol, JobRejectsTruncationTrailingBytesAndABadFlag) {

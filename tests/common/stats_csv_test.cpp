@@ -52,3 +52,40 @@ TEST(ResumeStatsCsv, RejectsARowWithoutAFrameNumber) {
   EXPECT_NE(test::errorOf([&] { resumeStatsCsv(path, kHeader, 1); }).find("frame number"),
             std::string::npos);
 }
+
+// A kill during an append leaves the last row without its newline: resuming
+// drops it (its frame is rendered again) and keeps every whole row.
+TEST(ResumeStatsCsv, DropsARowTornByAnInterruptedAppend) {
+  TempDir d;
+  std::string path = write(d, kHeader + "0,1.5,10\n1,2.5,20\n2,3.");
+  EXPECT_EQ(resumeStatsCsv(path, kHeader, 9), kHeader + "0,1.5,10\n1,2.5,20\n");
+}
+
+TEST(StatsCsvAppender, WritesTheStartThenAppendsWholeRows) {
+  TempDir d;
+  std::string path = d / "stats.csv";
+  write(d, "an older run's file, replaced\n");
+  {
+    StatsCsvAppender csv(path, kHeader + "0,1.5,10\n");
+    csv.append("1,2.5,20\n");
+    csv.append("2,3.5,30\n");
+    std::ifstream in(path);  // readable between appends: a run's progress
+    std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    EXPECT_EQ(text, kHeader + "0,1.5,10\n1,2.5,20\n2,3.5,30\n");
+  }
+  EXPECT_EQ(resumeStatsCsv(path, kHeader, 2), kHeader + "0,1.5,10\n1,2.5,20\n");
+}
+
+TEST(StatsCsvAppender, AnEmptyPathWritesNothing) {
+  EXPECT_NO_THROW({
+    StatsCsvAppender csv("", kHeader);
+    csv.append("0,1.5,10\n");
+  });
+}
+
+TEST(StatsCsvAppender, AnUnwritableDirectoryIsAnErrorNamingTheFile) {
+  TempDir d;
+  std::string path = d / "missing-dir/stats.csv";
+  EXPECT_NE(test::errorOf([&] { StatsCsvAppender csv(path, kHeader); }).find(path),
+            std::string::npos);
+}

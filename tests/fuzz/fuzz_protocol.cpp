@@ -1,6 +1,8 @@
 // libFuzzer target for the server-client message decoders (common/protocol.h):
-// the first byte picks the decoder (even: Job, odd: SubFrame batch), the rest
-// is the message. What decodes must encode back to the same bytes.
+// the first byte picks the decoder (even: Job, odd: SubFrame batch) and, for
+// a Job, the scene's object count (its upper 7 bits; 127: 2^32); the rest is
+// the message. What decodes must encode back to the same bytes, and a
+// decoded Job must be one a client can index the scene with.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -15,7 +17,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::vector<uint8_t> bytes(data + 1, data + size);
   try {
     if (job) {
-      FUZZ_CHECK(dmmr::encodeJob(dmmr::decodeJob(bytes)) == bytes);
+      size_t objects = data[0] >> 1 == 127 ? size_t(1) << 32 : size_t(data[0] >> 1);
+      dmmr::FrameJob j = dmmr::decodeJob(bytes, objects);
+      FUZZ_CHECK(dmmr::encodeJob(j) == bytes);
+      for (size_t i = 0; i < j.objects.size(); ++i)
+        FUZZ_CHECK(j.objects[i] < objects && (i == 0 || j.objects[i - 1] < j.objects[i]));
+      FUZZ_CHECK(dmmr::insideFrame(j.region, j.width, j.height));
     } else {
       FUZZ_CHECK(dmmr::encodeSubFrames(dmmr::decodeSubFrames(bytes)) == bytes);
     }

@@ -168,16 +168,17 @@ int main(int argc, char** argv) {
       {0.04, {-69.2, -11.5, 13.3}, lookAtRotation({-69.2, -11.5, 13.3}, {0, 0, 1}, {0, 0, 1})}};
   put("walkthrough", "formatted.path", formatWalkthrough(w));
 
-  // Protocol messages, behind the target's selector byte (even: Job).
+  // Protocol messages, behind the target's selector byte (even: Job, with
+  // the scene's object count in the upper 7 bits: 20, and 127 for 2^32).
   auto message = [](uint8_t selector, std::vector<uint8_t> bytes) {
     bytes.insert(bytes.begin(), selector);
     return bytes;
   };
   FrameJob job{3,        Camera{{1, 2, 3}, {0, 0, 0, 1}, 45, 1.5, 0.01}, 64, 48, {0, 16, 32, 16},
                {0, 4, 9}};
-  put("protocol", "job.bin", message(0, encodeJob(job)));
+  put("protocol", "job.bin", message(20 << 1, encodeJob(job)));
   job.flush = false;
-  put("protocol", "job-noflush.bin", message(2, encodeJob(job)));
+  put("protocol", "job-noflush.bin", message(127 << 1, encodeJob(job)));
   SubFrame sub;
   sub.frame = 3;
   sub.region = {0, 0, 2, 1};
