@@ -91,13 +91,12 @@ PlantScene& plant() {
   return *s;
 }
 
-double column(const std::map<std::string, double>& row, const std::string& name) {
-  auto it = row.find(name);
-  EXPECT_NE(it, row.end()) << "no column " << name;
-  return it == row.end() ? 0 : it->second;
+// Throws (failing the test) when the stats have no such column.
+double column(const test::CsvRow& row, const std::string& name) {
+  return row[name];
 }
 
-double clientSum(const std::map<std::string, double>& row, int clients, const std::string& name) {
+double clientSum(const test::CsvRow& row, int clients, const std::string& name) {
   double sum = 0;
   for (int k = 1; k <= clients; ++k) sum += column(row, "c" + std::to_string(k) + "_" + name);
   return sum;
@@ -135,7 +134,7 @@ TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
   ASSERT_EQ(diffs.size(), kFlyFrames);
   for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
 
-  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   size_t culled_frames = 0;
   double drawn = 0, in_frustum = 0;
@@ -177,7 +176,7 @@ TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
   std::string out = s.dir / "off";
   ASSERT_EQ(s.render(2, s.fly, out, "--visibility off --stats " + out + ".csv"), 0);
   EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0);
-  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   for (const auto& row : rows) {
     EXPECT_GE(clientSum(row, 2, "triangles"), column(row, "triangles_in_frustum"));
