@@ -6,7 +6,10 @@
 # link shaped with tc. Needs root.
 #
 #   netem.sh check                  what this kernel offers; exit 0 when a link can be
-#                                   shaped (rate and delay), 77 when not (CTest's skip code)
+#                                   shaped (rate and delay); 77 (CTest's skip code) when
+#                                   namespaces are out of reach (not root, no iproute2,
+#                                   ip netns add fails); 1 when they work but a link
+#                                   cannot be shaped (no bridge, tbf, or netem/nfqueue)
 #   netem.sh up N [SHAPE...]        make namespaces 0..N (refuses when PREFIX is up already)
 #   netem.sh shape [SHAPE...]       reshape the links of what is up (no namespace remade)
 #   netem.sh down                   tear everything of PREFIX down; idempotent, never fails
@@ -123,7 +126,7 @@ cmd_check() {
     exit 0
   fi
   echo "netem: cannot emulate a link here (needs bridge, tbf, and netem or nfqueue)"
-  exit 77
+  exit 1
 }
 
 # The delay daemon's binary, compiled into the state directory when no build has one.

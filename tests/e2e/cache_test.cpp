@@ -58,8 +58,8 @@ struct ReplicatedPlant {
   }
   // Runs 2 clients; returns the per-client sums of the stats CSV's columns
   // ("c1_disk_bytes" -> sum over frames) and each column's maximum.
-  std::map<std::string, std::pair<uint64_t, uint64_t>> render(const std::string& out,
-                                                              const std::string& extra) {
+  test::Columns<std::pair<uint64_t, uint64_t>> render(const std::string& out,
+                                                      const std::string& extra) {
     int status = 0;
     std::string log =
         test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
@@ -68,11 +68,11 @@ struct ReplicatedPlant {
                          &status);
     EXPECT_NE(status, 124) << "timed out\n" << log;
     EXPECT_EQ(status, 0) << log;
-    std::map<std::string, std::pair<uint64_t, uint64_t>> cols;
+    test::Columns<std::pair<uint64_t, uint64_t>> cols(out + ".csv");
     for (const auto& row : test::readCsv(out + ".csv"))
       for (const auto& [name, value] : row) {
         if (name.find("_ms") != std::string::npos) continue;
-        auto& [sum, max] = cols[name];
+        auto& [sum, max] = cols.entry(name);
         sum += uint64_t(value);
         max = std::max(max, uint64_t(value));
       }

@@ -3,7 +3,8 @@
 // mpirun dmmr-render must be pixel-identical to dmmr-reference over the whole
 // walkthrough, and the stage must really cull (the clients draw fewer
 // triangles than the server found in the frustum). The approximate settings
-// (--query-threshold, --keep-frames) must run to the end.
+// (--query-threshold, --keep-frames) must stay within a bound argued from the
+// benchmark.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -91,13 +92,12 @@ PlantScene& plant() {
   return *s;
 }
 
-double column(const std::map<std::string, double>& row, const std::string& name) {
-  auto it = row.find(name);
-  EXPECT_NE(it, row.end()) << "no column " << name;
-  return it == row.end() ? 0 : it->second;
+// Throws (failing the test) when the stats have no such column.
+double column(const test::CsvRow& row, const std::string& name) {
+  return row[name];
 }
 
-double clientSum(const std::map<std::string, double>& row, int clients, const std::string& name) {
+double clientSum(const test::CsvRow& row, int clients, const std::string& name) {
   double sum = 0;
   for (int k = 1; k <= clients; ++k) sum += column(row, "c" + std::to_string(k) + "_" + name);
   return sum;
@@ -135,7 +135,7 @@ TEST_P(VisibilityStage, FramesAreExactAndTheStageCulls) {
   ASSERT_EQ(diffs.size(), kFlyFrames);
   for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
 
-  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   size_t culled_frames = 0;
   double drawn = 0, in_frustum = 0;
@@ -177,7 +177,7 @@ TEST(VisibilityStageOff, DrawsTheWholeFrustum) {
   std::string out = s.dir / "off";
   ASSERT_EQ(s.render(2, s.fly, out, "--visibility off --stats " + out + ".csv"), 0);
   EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0);
-  std::vector<std::map<std::string, double>> rows = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), kFlyFrames);
   for (const auto& row : rows) {
     EXPECT_GE(clientSum(row, 2, "triangles"), column(row, "triangles_in_frustum"));
@@ -216,19 +216,74 @@ TEST(VisibilityStageFused, TheRedrawPathIsExactToo) {
   }
 }
 
-TEST(VisibilityStageApproximate, ThresholdAndKeepFramesComplete) {
-  // Approximate settings: a query must pass 50 samples, and objects stay
-  // visible for 10 frames. Frames may differ from the reference; the count
-  // is recorded, not judged.
+// Approximate settings (--query-threshold T > 0: a box passing fewer than T
+// samples is culled; queries only, the pyramid ignores T) are judged by a
+// bound argued from docs/benchmarks.md, "speed against error". At 512x512
+// the harshest threshold measured, 64 samples, gave worst frames of 35.1 dB
+// (plant10m) and 33.3 dB (monument4m) with at most 969 of 262,144 pixels
+// (0.37%) differing, and 40.8 dB or more over a whole walkthrough. T counts
+// pixels, so the same share of this 192x144 frame (27,648 pixels) is
+// 64 x 27,648 / 262,144 = 7 samples. The bound gives that worst case margin:
+// every frame at least 25 dB (8 dB below the benchmark's worst, 7x its
+// squared error) with at most 2% of its pixels differing (5x its share), and
+// 35 dB over the walkthrough. Measured here at 7 samples: worst frame 36.4 dB
+// and 70 pixels (0.25%), 43.9 dB over all frames. A threshold 7 times harsher
+// (50) already breaks the pixel bound (579 pixels in a frame); 1000 breaks all
+// three, which the test checks so that the bound keeps telling wrecked frames
+// apart on this scene.
+namespace {
+
+constexpr double kMinFramePsnr = 25, kMaxFrameDifferingShare = 0.02, kMinWalkthroughPsnr = 35;
+
+// "" when the frames are within the bound, else what breaks it.
+std::string approximationError(const std::vector<FrameDiff>& diffs) {
+  std::ostringstream why;
+  std::vector<ImageDiff> all;
+  for (const FrameDiff& d : diffs) {
+    all.push_back(d.diff);
+    if (d.diff.psnr < kMinFramePsnr) why << d.name << ": " << d.diff.psnr << " dB; ";
+    if (double(d.diff.differing_pixels) > kMaxFrameDifferingShare * double(d.diff.pixels))
+      why << d.name << ": " << d.diff.differing_pixels << " of " << d.diff.pixels
+          << " pixels differ; ";
+  }
+  double psnr = combineDiffs(all).psnr;
+  if (psnr < kMinWalkthroughPsnr) why << "whole walkthrough: " << psnr << " dB";
+  return why.str();
+}
+
+}  // namespace
+
+TEST(VisibilityStageApproximate, ErrorStaysWithinTheBenchmarksBound) {
   PlantScene& s = plant();
-  std::string out = s.dir / "approx";
-  ASSERT_EQ(
-      s.render(3, s.fly, out, "--query-threshold 50 --keep-frames 10 --stats " + out + ".csv"), 0);
-  int64_t differing = differingPixels(s.fly_reference, out, kFlyFrames);
-  RecordProperty("differing_pixels", std::to_string(differing));
-  std::printf("--query-threshold 50 --keep-frames 10: %lld differing pixels over %u frames\n",
-              (long long)differing, kFlyFrames);
-  EXPECT_EQ(test::readCsv(out + ".csv").size(), kFlyFrames);
+  struct Case {
+    const char* options;
+    bool within;
+  };
+  for (const Case& c : {Case{"--query-threshold 7 --keep-frames 10", true},
+                        Case{"--query-threshold 1000", false}}) {
+    std::string out = s.dir / ("approx" + test::slug(c.options));
+    ASSERT_EQ(s.render(3, s.fly, out,
+                       "--visibility queries --stages split " + std::string(c.options) +
+                           " --stats " + out + ".csv"),
+              0);
+    std::vector<FrameDiff> diffs = compareDirectories(s.fly_reference, out);
+    ASSERT_EQ(diffs.size(), kFlyFrames);
+    std::vector<ImageDiff> frames;
+    for (const FrameDiff& d : diffs) frames.push_back(d.diff);
+    ImageDiff all = combineDiffs(frames);
+    RecordProperty(test::slug(c.options) + "_differing_pixels",
+                   std::to_string(all.differing_pixels));
+    std::printf("%s: %lld differing pixels over %u frames, %.1f dB\n", c.options,
+                (long long)all.differing_pixels, kFlyFrames, all.psnr);
+    // Identical frames would mean the threshold was never applied.
+    EXPECT_GT(all.differing_pixels, 0) << c.options << ": the approximation is not exercised";
+    std::string error = approximationError(diffs);
+    if (c.within)
+      EXPECT_EQ(error, "") << c.options;
+    else
+      EXPECT_NE(error, "") << c.options << ": the bound does not catch wrecked frames";
+    EXPECT_EQ(test::readCsv(out + ".csv").size(), kFlyFrames);
+  }
 }
 
 // A closed room (one box, seen from inside through its back faces) with

@@ -72,15 +72,16 @@ std::string runCapture(const std::string& command, int* status) {
   return out;
 }
 
-std::vector<std::map<std::string, double>> readCsv(const std::string& path) {
+std::vector<CsvRow> readCsv(const std::string& path) {
   std::ifstream in(path);
+  if (!in) throw Error(fileError(path, "cannot open"));
   auto split = [](const std::string& line) {
     std::vector<std::string> cells;
     std::stringstream ss(line);
     for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
     return cells;
   };
-  std::vector<std::map<std::string, double>> rows;
+  std::vector<CsvRow> rows;
   std::string line;
   if (!std::getline(in, line)) throw Error(fileError(path, "no header line"));
   std::vector<std::string> header = split(line);
@@ -90,8 +91,15 @@ std::vector<std::map<std::string, double>> readCsv(const std::string& path) {
       throw Error(fileError(path, number,
                             "has " + std::to_string(cells.size()) + " cells, the header " +
                                 std::to_string(header.size())));
-    std::map<std::string, double> row;
-    for (size_t i = 0; i < cells.size(); ++i) row[header[i]] = std::stod(cells[i]);
+    CsvRow row(path);
+    for (size_t i = 0; i < cells.size(); ++i) {
+      char* end = nullptr;
+      double value = std::strtod(cells[i].c_str(), &end);
+      if (cells[i].empty() || *end != '\0')
+        throw Error(fileError(
+            path, number, "column \"" + header[i] + "\": \"" + cells[i] + "\" is not a number"));
+      row.entry(header[i]) = value;
+    }
     rows.push_back(std::move(row));
   }
   return rows;

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "error.h"
@@ -54,10 +55,43 @@ int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.
 std::string runCapture(const std::string& command, int* status);
 
-// A numeric CSV (the stats files) as one map per row, column name to value.
-// Throws Error naming the file and line when a row's cells do not match the
-// header.
-std::vector<std::map<std::string, double>> readCsv(const std::string& path);
+// Values by column name, read strictly: reading a column that is not there
+// throws Error naming the file and the column, so a renamed column fails its
+// test instead of reading as 0 (as std::map's operator[] would).
+template <typename V>
+class Columns {
+ public:
+  explicit Columns(std::string file) : file_(std::move(file)) {}
+  const V& operator[](const std::string& name) const { return at(name); }
+  const V& at(const std::string& name) const {
+    auto it = values_.find(name);
+    if (it == values_.end()) missing(name);
+    return it->second;
+  }
+  bool contains(const std::string& name) const { return values_.count(name) != 0; }
+  // For building: the value of `name`, value-initialised when new.
+  V& entry(const std::string& name) { return values_[name]; }
+  auto begin() const { return values_.begin(); }
+  auto end() const { return values_.end(); }
+  size_t size() const { return values_.size(); }
+  const std::string& file() const { return file_; }
+
+ private:
+  [[noreturn]] void missing(const std::string& name) const {
+    std::string have;
+    for (const auto& [column, value] : values_) have += (have.empty() ? "" : ", ") + column;
+    throw Error(fileError(file_, "no column \"" + name + "\" (columns: " + have + ")"));
+  }
+  std::string file_;
+  std::map<std::string, V> values_;
+};
+
+using CsvRow = Columns<double>;
+
+// A numeric CSV (the stats files), one row per line after the header. Throws
+// Error naming the file (and line) when it cannot be read, a row's cells do
+// not match the header, or a cell is not a number.
+std::vector<CsvRow> readCsv(const std::string& path);
 
 // Flips the bits of the byte at `offset`, so the file changes whatever the
 // byte held.
