@@ -128,7 +128,7 @@ class Culler {
     // against its own depth, since its widened box lies in front of it).
     // Occluders still marked from an earlier pass are taken untested, like
     // every marked object: the paper's n frames.
-    std::vector<uint32_t> candidates, taken = plan.marked;
+    std::vector<uint32_t> candidates, taken;  // taken: the marked occluders
     for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
       (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
     std::vector<uint32_t> passed = test(candidates, job, &d, plan.occluders);
@@ -150,7 +150,7 @@ class Culler {
     d.prepare_ms = msSince(t0) - d.retrieve_ms;
     std::sort(passed.begin(), passed.end());
     passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
-    d.visible = mergeSorted({taken, passed});
+    d.visible = mergeSorted({plan.marked, taken, passed});
     visible_now_.insert(visible_now_.end(), d.visible.begin(), d.visible.end());
     d.occluders = plan.occluders.size();
     return d;
@@ -294,7 +294,10 @@ class Culler {
   void startFrame(uint32_t frame) {
     if (frame == frame_) return;
     for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
-    previous_ = mergeSorted({visible_now_});
+    // The jobs' lists, each ascending, one after another.
+    std::sort(visible_now_.begin(), visible_now_.end());
+    visible_now_.erase(std::unique(visible_now_.begin(), visible_now_.end()), visible_now_.end());
+    previous_.swap(visible_now_);
     passed_now_.clear();
     visible_now_.clear();
     frame_ = frame;
