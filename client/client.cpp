@@ -19,6 +19,7 @@
 #include "error.h"
 #include "gpu_cache.h"
 #include "host_cache.h"
+#include "image.h"
 #include "protocol.h"
 #include "queue.h"
 #include "scene.h"
@@ -686,18 +687,16 @@ class RenderStage {
                                      st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
                                      regionTriangles(scene_, job.objects)});
     auto tr = Clock::now();
-    std::vector<uint8_t> rgba, rgb;
-    r.readPixels(job.region, &rgba);
-    rgb.resize(size_t(job.region.area()) * 3);
-    for (size_t i = 0, n = size_t(job.region.area()); i < n; ++i)
-      for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = rgba[i * 4 + c];
+    r.readPixels(job.region, &rgba_);
+    rgb_.resize(size_t(job.region.area()) * 3);
+    rgbaToRgb(rgba_.data(), size_t(job.region.area()), rgb_.data());
     st.readback_ms = msSince(tr);
     auto tc = Clock::now();
     out.codec = codec_;
-    out.raw_size = rgb.size();
-    out.data = compress(codec_, rgb.data(), rgb.size());
+    out.raw_size = rgb_.size();
+    out.data = compress(codec_, rgb_.data(), rgb_.size());
     st.compress_ms = msSince(tc);
-    st.bytes_raw = rgb.size();
+    st.bytes_raw = rgb_.size();
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
@@ -719,6 +718,7 @@ class RenderStage {
   HostCacheStats host_before_;
   int rank_;
   double last_send_ms_ = 0;
+  std::vector<uint8_t> rgba_, rgb_;  // the readback's, kept across frames
 };
 
 // Sends the first error of any stage to the server; later stages drain their
