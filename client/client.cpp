@@ -20,6 +20,7 @@
 #include "gpu_cache.h"
 #include "guarded.h"
 #include "host_cache.h"
+#include "image.h"
 #include "protocol.h"
 #include "queue.h"
 #include "scene.h"
@@ -136,7 +137,7 @@ class Culler {
     // against its own depth, since its widened box lies in front of it).
     // Occluders still marked from an earlier pass are taken untested, like
     // every marked object: the paper's n frames.
-    std::vector<uint32_t> candidates, taken = plan.marked;
+    std::vector<uint32_t> candidates, taken;  // taken: the marked occluders
     for (uint32_t o : mergeSorted({plan.occluders, plan.queried}))
       (job.frame < marked_until_[o] ? taken : candidates).push_back(o);
     std::vector<uint32_t> passed = test(candidates, job, &d, plan.occluders);
@@ -158,7 +159,7 @@ class Culler {
     d.prepare_ms = msSince(t0) - d.retrieve_ms;
     std::sort(passed.begin(), passed.end());
     passed_now_.insert(passed_now_.end(), passed.begin(), passed.end());
-    d.visible = mergeSorted({taken, passed});
+    d.visible = mergeSorted({plan.marked, taken, passed});
     visible_now_.insert(visible_now_.end(), d.visible.begin(), d.visible.end());
     d.occluders = plan.occluders.size();
     return d;
@@ -302,7 +303,10 @@ class Culler {
   void startFrame(uint32_t frame) {
     if (frame == frame_) return;
     for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
-    previous_ = mergeSorted({visible_now_});
+    // The jobs' lists, each ascending, one after another.
+    std::sort(visible_now_.begin(), visible_now_.end());
+    visible_now_.erase(std::unique(visible_now_.begin(), visible_now_.end()), visible_now_.end());
+    previous_.swap(visible_now_);
     passed_now_.clear();
     visible_now_.clear();
     frame_ = frame;
@@ -691,18 +695,16 @@ class RenderStage {
                                      st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
                                      regionTriangles(scene_, job.objects)});
     auto tr = Clock::now();
-    std::vector<uint8_t> rgba, rgb;
-    r.readPixels(job.region, &rgba);
-    rgb.resize(size_t(job.region.area()) * 3);
-    for (size_t i = 0, n = size_t(job.region.area()); i < n; ++i)
-      for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = rgba[i * 4 + c];
+    r.readPixels(job.region, &rgba_);
+    rgb_.resize(size_t(job.region.area()) * 3);
+    rgbaToRgb(rgba_.data(), size_t(job.region.area()), rgb_.data());
     st.readback_ms = msSince(tr);
     auto tc = Clock::now();
     out.codec = codec_;
-    out.raw_size = rgb.size();
-    out.data = compress(codec_, rgb.data(), rgb.size());
+    out.raw_size = rgb_.size();
+    out.data = compress(codec_, rgb_.data(), rgb_.size());
     st.compress_ms = msSince(tc);
-    st.bytes_raw = rgb.size();
+    st.bytes_raw = rgb_.size();
     st.bytes_sent = out.data.size();
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
@@ -724,6 +726,7 @@ class RenderStage {
   HostCacheStats host_before_;
   int rank_;
   double last_send_ms_ = 0;
+  std::vector<uint8_t> rgba_, rgb_;  // the readback's, kept across frames
 };
 
 // Sends the first error of any stage to the server; later stages drain their

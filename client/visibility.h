@@ -74,7 +74,8 @@ VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
                               const std::vector<uint32_t>& potential,
                               const std::vector<uint32_t>& marked_until, uint32_t frame);
 
-// Ascending union of sorted lists.
+// Ascending union, without duplicates, of lists that are each ascending
+// (a list may repeat a value); linear in their total size.
 std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& lists);
 
 // True when the box comes within reach of the near plane's rectangle, where a

@@ -59,6 +59,10 @@ Image decodePng(std::span<const uint8_t> bytes, const std::string& name);
 // when the file cannot be read.
 Image readPng(const std::string& path);
 
+// Drops the alpha channel: `pixels` RGBA pixels from `rgba` to RGB in
+// `rgb` (3 * pixels bytes, written and nothing beyond).
+void rgbaToRgb(const uint8_t* rgba, size_t pixels, uint8_t* rgb);
+
 // Reverses the row order: converts GL's bottom-up glReadPixels result to
 // top-down and back. Requires a consistent image.
 Image flipRows(const Image& image);

@@ -59,8 +59,8 @@ void TilePool::add(size_t tiles) {
 std::vector<uint32_t> TilePool::refill(int client) {
   DMMR_CHECK(client >= 0 && size_t(client) < in_flight_.size());
   std::vector<uint32_t> out;
-  while (in_flight_[size_t(client)] < window_ && next_ < owner_.size()) {
-    owner_[next_] = client;
+  while (in_flight_[size_t(client)] < window_ && next_ < size()) {
+    owner_[next_ - base_] = client;
     ++in_flight_[size_t(client)];
     out.push_back(uint32_t(next_++));
   }
@@ -68,10 +68,22 @@ std::vector<uint32_t> TilePool::refill(int client) {
 }
 
 void TilePool::done(int client, uint32_t tile) {
-  DMMR_CHECK(tile < owner_.size() && owner_[tile] == client && !back_[tile]);
-  back_[tile] = 1;
+  DMMR_CHECK(tile >= base_ && tile < size() && owner_[tile - base_] == client &&
+             !back_[tile - base_]);
+  back_[tile - base_] = 1;
   --in_flight_[size_t(client)];
   ++returned_;
+  // Forget the returned tiles at the front.
+  while (!back_.empty() && back_.front()) {
+    back_.pop_front();
+    owner_.pop_front();
+    ++base_;
+  }
+}
+
+int TilePool::owner(uint32_t tile) const {
+  DMMR_CHECK(tile >= base_ && tile < size());
+  return owner_[tile - base_];
 }
 
 bool parseTileSize(const std::string& text, int* w, int* h) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -42,30 +43,40 @@ std::vector<std::vector<uint32_t>> dealTiles(size_t tiles, int columns, int clie
 
 // Dynamic dealing: a pool handed out on demand, with at most `window` tiles
 // in flight per client (more hides the link's latency; 1 is the paper's
-// request-per-tile).
+// request-per-tile). Tiles are numbered on over the whole run; the pool
+// keeps only those from the oldest not yet returned on, so its memory is
+// bounded by what is queued and in flight, not by the run's length.
 class TilePool {
  public:
   TilePool(size_t tiles, int clients, int window);
   // Appends `tiles` more to the pool (the next frame's, say), numbered on.
   void add(size_t tiles);
-  size_t size() const { return owner_.size(); }
+  // Tiles ever added: the number the next added tile gets.
+  size_t size() const { return base_ + owner_.size(); }
   // Tiles to send `client` now: enough to fill its window from the pool,
   // lowest index first. Empty when the pool is dry or the window is full.
   std::vector<uint32_t> refill(int client);
   // `client` returned `tile` (which it must have been given and not yet
   // returned).
   void done(int client, uint32_t tile);
-  bool finished() const { return returned_ == owner_.size(); }
+  bool finished() const { return returned_ == size(); }
   int inFlight(int client) const { return in_flight_[size_t(client)]; }
-  // Which client was given each tile (-1: not yet handed out).
-  const std::vector<int>& owner() const { return owner_; }
+  // Which client was given `tile` (-1: not yet handed out); `tile` must not
+  // be forgotten yet (>= forgotten()).
+  int owner(uint32_t tile) const;
+  // Tiles below this number were all returned, and are forgotten.
+  size_t forgotten() const { return base_; }
+  // Tiles whose bookkeeping is held: size() - forgotten().
+  size_t held() const { return owner_.size(); }
 
  private:
-  std::vector<int> owner_;
-  std::vector<uint8_t> back_;
+  // Tiles base_, base_ + 1, ...: the client given each (-1: none yet), and
+  // whether it came back.
+  std::deque<int> owner_;
+  std::deque<uint8_t> back_;
   std::vector<int> in_flight_;
   int window_;
-  size_t next_ = 0, returned_ = 0;
+  size_t base_ = 0, next_ = 0, returned_ = 0;  // next_: the next tile to hand out
 };
 
 // Parses "WxH" (W, H in 1..16384); false when malformed.

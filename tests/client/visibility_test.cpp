@@ -128,6 +128,27 @@ TEST(MergeSorted, MatchesStdSetOnRandomLists) {
   }
 }
 
+// Against the code mergeSorted replaced (sort and unique of the
+// concatenation), on ascending lists that may repeat values within a list
+// and share them across lists, of any length, near UINT32_MAX too.
+TEST(MergeSorted, MatchesSortUniqueOfTheConcatenation) {
+  std::mt19937 rng(1414);
+  for (int round = 0; round < 2000; ++round) {
+    std::vector<List> lists(rng() % 6);
+    List all;
+    uint32_t base = rng() % 4 == 0 ? 0xFFFFFFFFu - 1000 : 0;
+    for (List& l : lists) {
+      size_t n = rng() % 4 == 0 ? 0 : rng() % 300;
+      for (size_t i = 0; i < n; ++i) l.push_back(base + rng() % 1000);
+      std::sort(l.begin(), l.end());
+      all.insert(all.end(), l.begin(), l.end());
+    }
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    ASSERT_EQ(mergeSorted(lists), all) << "round " << round;
+  }
+}
+
 namespace {
 
 // Camera at the origin looking down -Z (identity rotation): fovy 90 degrees

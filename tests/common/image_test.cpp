@@ -348,6 +348,25 @@ TEST_F(CompareDirTest, NoFramesThrows) {
   expectErrorMentioning([&] { compareDirectories(path("a"), path("nope")); }, path("nope"));
 }
 
+// rgbaToRgb against the channel loop it replaced, on random pixels: the
+// same bytes, and nothing written past 3 * pixels (guard bytes stay).
+TEST(RgbaToRgb, MatchesAChannelLoopAndWritesNothingPastTheEnd) {
+  std::mt19937 rng(14);
+  for (size_t pixels : {0u, 1u, 2u, 3u, 7u, 64u, 1000u, 4099u}) {
+    std::vector<uint8_t> rgba(pixels * 4);
+    for (uint8_t& b : rgba) b = uint8_t(rng());
+    std::vector<uint8_t> want(pixels * 3);
+    for (size_t i = 0; i < pixels; ++i)
+      for (size_t c = 0; c < 3; ++c) want[i * 3 + c] = rgba[i * 4 + c];
+    std::vector<uint8_t> got(pixels * 3 + 8, 0xA5);
+    rgbaToRgb(rgba.data(), pixels, got.data());
+    EXPECT_TRUE(std::equal(want.begin(), want.end(), got.begin())) << pixels;
+    EXPECT_TRUE(std::all_of(got.begin() + long(pixels * 3), got.end(), [](uint8_t b) {
+      return b == 0xA5;
+    })) << pixels;
+  }
+}
+
 }  // namespace
 }  // namespace dmmr
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <deque>
 #include <random>
 
 #include "tiles.h"
@@ -91,11 +92,68 @@ TEST(TilePool, FillsEachWindowThenRefillsAsTilesReturn) {
   pool.done(1, 3);
   EXPECT_EQ(pool.refill(1), Ids{4});
   EXPECT_TRUE(pool.refill(0).empty()) << "pool dry";
+  std::vector<int> owners;
+  for (uint32_t t = 0; t < 5; ++t) owners.push_back(pool.owner(t));
+  EXPECT_EQ(owners, (std::vector<int>{0, 0, 1, 1, 1}));
   for (auto [c, t] : {std::pair{0, 0u}, {0, 1u}, {1, 2u}}) pool.done(c, t);
   EXPECT_FALSE(pool.finished());
   pool.done(1, 4);
   EXPECT_TRUE(pool.finished());
-  EXPECT_EQ(pool.owner(), (std::vector<int>{0, 0, 1, 1, 1}));
+}
+
+// Tiles are forgotten once every tile before them is back: out-of-order
+// returns keep the later ones until the gap closes.
+TEST(TilePool, ForgetsTilesOnceAllBeforeThemAreBack) {
+  TilePool pool(4, 1, 4);
+  EXPECT_EQ(pool.refill(0), (Ids{0, 1, 2, 3}));
+  pool.done(0, 1);
+  pool.done(0, 2);
+  EXPECT_EQ(pool.forgotten(), 0u);  // tile 0 is still out
+  EXPECT_EQ(pool.held(), 4u);
+  EXPECT_EQ(pool.owner(3), 0);
+  pool.done(0, 0);
+  EXPECT_EQ(pool.forgotten(), 3u);
+  EXPECT_EQ(pool.held(), 1u);
+  pool.add(2);
+  EXPECT_EQ(pool.size(), 6u);
+  EXPECT_EQ(pool.owner(4), -1);  // not yet handed out
+  pool.done(0, 3);
+  EXPECT_EQ(pool.refill(0), (Ids{4, 5}));
+  pool.done(0, 5);
+  pool.done(0, 4);
+  EXPECT_TRUE(pool.finished());
+  EXPECT_EQ(pool.held(), 0u);
+  EXPECT_EQ(pool.forgotten(), 6u);
+}
+
+// A long run as the server drives it (a frame's tiles added while the last
+// frame's are still out, each client answering in order, clients in random
+// turns): the pool's bookkeeping stays within about two frames' tiles
+// however many frames go by, while the numbering goes on.
+TEST(TilePool, HoldsAboutTwoFramesOfTilesOverALongRun) {
+  const int clients = 3, window = 2;
+  const size_t per_frame = 64, frames = 3000;
+  TilePool pool(per_frame, clients, window);
+  std::vector<std::deque<uint32_t>> given(clients);
+  std::mt19937 rng(14);
+  size_t most = 0;
+  for (size_t f = 0; f < frames; ++f) {
+    pool.add(per_frame);
+    for (size_t returned = 0; returned < per_frame;) {
+      for (int k = 0; k < clients; ++k)
+        for (uint32_t t : pool.refill(k)) given[size_t(k)].push_back(t);
+      auto& g = given[rng() % clients];
+      if (g.empty()) continue;
+      pool.done(int(&g - given.data()), g.front());
+      g.pop_front();
+      ++returned;
+    }
+    most = std::max(most, pool.held());
+  }
+  EXPECT_EQ(pool.size(), (frames + 1) * per_frame);
+  EXPECT_FALSE(pool.finished());  // the last frame's tiles are still out
+  EXPECT_LE(most, 2 * per_frame);
+  EXPECT_GE(most, per_frame);
 }
 
 // Clients finishing in random order: every tile is handed out once, no
