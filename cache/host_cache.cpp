@@ -80,6 +80,9 @@ HostCache::HostCache(const Scene& scene, HostCacheOptions options)
       bad_(scene.manifest.geometries, 0),
       in_flight_(scene.manifest.geometries, 0),
       queued_(scene.manifest.geometries, 0) {
+  file_bytes_.reserve(scene.manifest.geometries);
+  for (uint32_t g = 0; g < scene.manifest.geometries; ++g)
+    file_bytes_.push_back(geometryFileBytes(scene, g));
   if (options.dir.empty())
     store_ = std::make_unique<MemoryStore>();
   else
@@ -103,7 +106,7 @@ std::optional<GeometryData> HostCache::get(uint32_t geometry) {
   if (bad_[geometry]) return std::nullopt;
   Bytes bytes;
   if (lru_.touch(geometry)) bytes = store_->read(geometry);
-  if (bytes && bytes->size() != geometryFileBytes(scene_, geometry)) bytes = nullptr;
+  if (bytes && bytes->size() != file_bytes_[geometry]) bytes = nullptr;
   if (bytes) {
     ++stats_.hits;
   } else {
@@ -215,7 +218,7 @@ void HostCache::loaderLoop() {
     auto [g, urgent] = requests_.front();
     requests_.pop_front();
     queued_[g] = 0;
-    uint64_t size = geometryFileBytes(scene_, g);
+    uint64_t size = file_bytes_[g];
     bool wanted = !bad_[g] && !in_flight_[g] && !lru_.contains(g) && lru_.admits(size) &&
                   (urgent || lru_.budget() - lru_.used() >= size);
     if (wanted) {

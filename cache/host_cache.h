@@ -88,8 +88,11 @@ class HostCache {
   mutable std::mutex mu_;
   std::condition_variable changed_;  // in-flight reads finished, requests queued
   LruBudget lru_;
-  HostCacheStats stats_;                            // counters; stats() adds resident from lru_
-  std::vector<uint8_t> bad_, in_flight_, queued_;   // per geometry
+  HostCacheStats stats_;                           // counters; stats() adds resident from lru_
+  std::vector<uint8_t> bad_, in_flight_, queued_;  // per geometry
+  // Per geometry, from the manifest once: its lookup by file name costs 12 %
+  // of a RAM hit (docs/benchmarks.md, "Issue 14: hot paths (A/B)").
+  std::vector<uint64_t> file_bytes_;
   std::deque<std::pair<uint32_t, bool>> requests_;  // geometry, urgent
   bool loader_busy_ = false;
   bool stop_ = false;
