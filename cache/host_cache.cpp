@@ -105,7 +105,7 @@ std::optional<GeometryData> HostCache::get(uint32_t geometry) {
   DMMR_CHECK(geometry < bad_.size());
   std::unique_lock<std::mutex> lock(mu_);
   // Not while it is read from disk or its entry is written or erased.
-  changed_.wait(lock, [&] { return !in_flight_[geometry] && !busy_[geometry]; });
+  idle_.wait(lock, [&] { return !in_flight_[geometry] && !busy_[geometry]; });
   if (bad_[geometry]) return std::nullopt;
   Bytes bytes;
   if (lru_.touch(geometry)) {
@@ -152,7 +152,7 @@ HostCache::Bytes HostCache::readDisk(std::unique_lock<std::mutex>& lock, uint32_
   }
   lock.lock();
   in_flight_[geometry] = 0;
-  changed_.notify_all();
+  idle_.notify_all();
   if (!bytes) {
     markBad(geometry, problem);
     return nullptr;
@@ -163,7 +163,7 @@ HostCache::Bytes HostCache::readDisk(std::unique_lock<std::mutex>& lock, uint32_
 
 void HostCache::admit(std::unique_lock<std::mutex>& lock, uint32_t geometry, const Bytes& bytes,
                       bool urgent) {
-  changed_.wait(lock, [&] { return !busy_[geometry]; });  // its stale entry is still going
+  idle_.wait(lock, [&] { return !busy_[geometry]; });  // its stale entry is still going
   if (lru_.contains(geometry) || bad_[geometry]) return;
   if (!lru_.admits(bytes->size())) {
     ++stats_.uncached;
@@ -211,7 +211,7 @@ void HostCache::release(std::unique_lock<std::mutex>& lock, uint32_t geometry) {
     lock.lock();
   }
   busy_[geometry] = 0;
-  changed_.notify_all();
+  idle_.notify_all();
 }
 
 void HostCache::markBad(uint32_t geometry, const std::string& why) {

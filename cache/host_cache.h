@@ -95,7 +95,10 @@ class HostCache {
   const Scene& scene_;
   std::unique_ptr<Store> store_;
   mutable std::mutex mu_;
-  std::condition_variable changed_;  // reads and claims finished, requests queued
+  std::condition_variable changed_;  // requests queued or all served, stop
+  // Disk reads (in_flight_) and claims (busy_) ended. Apart from changed_, so
+  // that a claim's end, once per RAM hit, does not wake the loader.
+  std::condition_variable idle_;
   LruBudget lru_;
   HostCacheStats stats_;                           // counters; stats() adds resident from lru_
   std::vector<uint8_t> bad_, in_flight_, queued_;  // per geometry
