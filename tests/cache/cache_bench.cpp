@@ -38,8 +38,7 @@ double cpuSeconds() {
 }
 
 double wallSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 double median(std::vector<double> v) {
@@ -91,15 +90,16 @@ void benchLru(int runs) {
 }
 
 // What a GPU miss costs on the host side once the file is in RAM: the
-// manifest lookup (geometryFileBytes: snprintf and a map<string> find),
-// decoding the file (decodeGeometryFile), and the whole HostCache::get (a
-// RAM hit: lock, LRU, size check, decode).
+// manifest lookup (geometryFileBytes: snprintf and a map<string> find), the
+// file's path as decodeGeometryFile builds it for its errors, decoding the
+// file (decodeGeometryFile), and the whole HostCache::get (a RAM hit: lock,
+// LRU, size check, decode).
 void benchMiss(const std::string& dir, int runs) {
   Scene s = loadScene(dir, false);
   uint32_t n = s.manifest.geometries;
   std::vector<std::vector<uint8_t>> files;
   for (uint32_t g = 0; g < n; ++g) files.push_back(readGeometryFile(s, g));
-  std::vector<double> lookup, decode, get;
+  std::vector<double> lookup, path, decode, get;
   uint64_t sink = 0;
   HostCache cache(s, {});
   for (uint32_t g = 0; g < n; ++g) cache.get(g);  // all in RAM
@@ -109,16 +109,22 @@ void benchMiss(const std::string& dir, int runs) {
       for (uint32_t g = 0; g < n; ++g) sink += geometryFileBytes(s, g);
     lookup.push_back((cpuSeconds() - t0) * 1e9 / (20.0 * n));
     t0 = cpuSeconds();
+    for (int rep = 0; rep < 20; ++rep)
+      for (uint32_t g = 0; g < n; ++g) sink += (s.dir + "/" + geometryFileName(g)).size();
+    path.push_back((cpuSeconds() - t0) * 1e9 / (20.0 * n));
+    t0 = cpuSeconds();
     for (uint32_t g = 0; g < n; ++g) sink += decodeGeometryFile(s, g, files[g]).triangleCount();
     decode.push_back((cpuSeconds() - t0) * 1e9 / n);
     t0 = cpuSeconds();
     for (uint32_t g = 0; g < n; ++g) sink += cache.get(g)->triangleCount();
     get.push_back((cpuSeconds() - t0) * 1e9 / n);
   }
-  std::printf("miss: %u geometries; CPU ns per geometry: lookup %.0f, decode %.0f, get %.0f "
-              "(lookup %.1f %% of get) [%llu]\n",
-              n, median(lookup), median(decode), median(get), 100 * median(lookup) / median(get),
-              (unsigned long long)(sink & 1));
+  std::printf(
+      "miss: %u geometries; CPU ns per geometry: lookup %.0f, path %.0f, decode %.0f, "
+      "get %.0f (lookup %.1f %%, path %.1f %% of get) [%llu]\n",
+      n, median(lookup), median(path), median(decode), median(get),
+      100 * median(lookup) / median(get), 100 * median(path) / median(get),
+      (unsigned long long)(sink & 1));
 }
 
 // get() from THREADS threads over a RAM-disk level holding every geometry
@@ -146,8 +152,8 @@ void benchRamDir(const std::string& dir, const std::string& ramdir, int threads,
       cpu.push_back((cpuSeconds() - c0) * 1e9 / gets);
     }
     std::printf("ramdir %s, %d threads: %.0f wall ns, %.0f CPU ns per get\n",
-                budget == LruBudget::kUnlimited ? "unlimited" : "budget 1/5", threads,
-                median(wall), median(cpu));
+                budget == LruBudget::kUnlimited ? "unlimited" : "budget 1/5", threads, median(wall),
+                median(cpu));
   }
 }
 
