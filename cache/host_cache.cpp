@@ -6,13 +6,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <unordered_map>
 
 #include "atomic_file.h"
 #include "error.h"
 
 namespace dmmr {
 
+// Called without the cache's lock, never twice at once for one key (the
+// cache claims the key for each call), concurrently for different keys.
 class HostCache::Store {
  public:
   virtual ~Store() = default;
@@ -21,17 +22,16 @@ class HostCache::Store {
   virtual void erase(uint32_t key) = 0;
 };
 
+// One slot per geometry: calls for different keys touch different slots.
 class HostCache::MemoryStore : public Store {
  public:
-  void put(uint32_t key, const Bytes& bytes) override { map_[key] = bytes; }
-  Bytes read(uint32_t key) override {
-    auto it = map_.find(key);
-    return it == map_.end() ? nullptr : it->second;
-  }
-  void erase(uint32_t key) override { map_.erase(key); }
+  explicit MemoryStore(size_t geometries) : slots_(geometries) {}
+  void put(uint32_t key, const Bytes& bytes) override { slots_[key] = bytes; }
+  Bytes read(uint32_t key) override { return slots_[key]; }
+  void erase(uint32_t key) override { slots_[key].reset(); }
 
  private:
-  std::unordered_map<uint32_t, Bytes> map_;
+  std::vector<Bytes> slots_;
 };
 
 // One file per entry in a directory of its own, so runs sharing a RAM disk
@@ -79,9 +79,14 @@ HostCache::HostCache(const Scene& scene, HostCacheOptions options)
       lru_(options.budget, options.eviction),
       bad_(scene.manifest.geometries, 0),
       in_flight_(scene.manifest.geometries, 0),
-      queued_(scene.manifest.geometries, 0) {
+      queued_(scene.manifest.geometries, 0),
+      busy_(scene.manifest.geometries, 0),
+      stale_(scene.manifest.geometries, 0) {
+  file_bytes_.reserve(scene.manifest.geometries);
+  for (uint32_t g = 0; g < scene.manifest.geometries; ++g)
+    file_bytes_.push_back(geometryFileBytes(scene, g));
   if (options.dir.empty())
-    store_ = std::make_unique<MemoryStore>();
+    store_ = std::make_unique<MemoryStore>(scene.manifest.geometries);
   else
     store_ = std::make_unique<DirectoryStore>(options.dir);
   loader_ = std::thread([this] { loaderLoop(); });
@@ -99,22 +104,30 @@ HostCache::~HostCache() {
 std::optional<GeometryData> HostCache::get(uint32_t geometry) {
   DMMR_CHECK(geometry < bad_.size());
   std::unique_lock<std::mutex> lock(mu_);
-  changed_.wait(lock, [&] { return !in_flight_[geometry]; });
+  // Not while it is read from disk or its entry is written or erased.
+  idle_.wait(lock, [&] { return !in_flight_[geometry] && !busy_[geometry]; });
   if (bad_[geometry]) return std::nullopt;
   Bytes bytes;
-  if (lru_.touch(geometry)) bytes = store_->read(geometry);
-  if (bytes && bytes->size() != geometryFileBytes(scene_, geometry)) bytes = nullptr;
+  if (lru_.touch(geometry)) {
+    busy_[geometry] = 1;
+    lock.unlock();
+    bytes = store_->read(geometry);
+    lock.lock();
+    if (bytes && bytes->size() != file_bytes_[geometry]) bytes = nullptr;
+    if (!bytes && lru_.contains(geometry)) {  // the RAM disk lost it: drop the entry
+      ++stats_.lost;
+      lru_.erase(geometry);
+      stale_[geometry] = 1;
+    }
+    release(lock, geometry);
+  }
   if (bytes) {
     ++stats_.hits;
   } else {
-    if (lru_.contains(geometry)) {  // the RAM disk lost it: drop the entry
-      lru_.erase(geometry);
-      store_->erase(geometry);
-    }
     ++stats_.misses;
     bytes = readDisk(lock, geometry);
     if (!bytes) return std::nullopt;
-    admit(geometry, bytes, /*urgent=*/true);
+    admit(lock, geometry, bytes, /*urgent=*/true);
   }
   lock.unlock();
   try {
@@ -122,8 +135,7 @@ std::optional<GeometryData> HostCache::get(uint32_t geometry) {
   } catch (const std::exception& e) {
     lock.lock();
     markBad(geometry, e.what());
-    store_->erase(geometry);
-    lru_.erase(geometry);
+    drop(lock, geometry);
     return std::nullopt;
   }
 }
@@ -140,7 +152,7 @@ HostCache::Bytes HostCache::readDisk(std::unique_lock<std::mutex>& lock, uint32_
   }
   lock.lock();
   in_flight_[geometry] = 0;
-  changed_.notify_all();
+  idle_.notify_all();
   if (!bytes) {
     markBad(geometry, problem);
     return nullptr;
@@ -149,20 +161,57 @@ HostCache::Bytes HostCache::readDisk(std::unique_lock<std::mutex>& lock, uint32_
   return bytes;
 }
 
-void HostCache::admit(uint32_t geometry, const Bytes& bytes, bool urgent) {
-  if (lru_.contains(geometry)) return;
+void HostCache::admit(std::unique_lock<std::mutex>& lock, uint32_t geometry, const Bytes& bytes,
+                      bool urgent) {
+  idle_.wait(lock, [&] { return !busy_[geometry]; });  // its stale entry is still going
+  if (lru_.contains(geometry) || bad_[geometry]) return;
   if (!lru_.admits(bytes->size())) {
     ++stats_.uncached;
     return;
   }
-  if (urgent) {
-    std::vector<uint32_t> evicted;
+  std::vector<uint32_t> evicted;
+  if (urgent)
     lru_.insert(geometry, bytes->size(), &evicted);
-    for (uint32_t e : evicted) store_->erase(e);
-  } else if (!lru_.insertIfFree(geometry, bytes->size())) {
+  else if (!lru_.insertIfFree(geometry, bytes->size()))
     return;
+  busy_[geometry] = 1;
+  // Evicted entries being read or written go when that ends; this thread
+  // erases the others.
+  std::vector<uint32_t> erasing;
+  for (uint32_t e : evicted) {
+    if (busy_[e]) {
+      stale_[e] = 1;
+    } else {
+      busy_[e] = 1;
+      erasing.push_back(e);
+    }
   }
+  lock.unlock();
+  for (uint32_t e : erasing) store_->erase(e);
   store_->put(geometry, bytes);
+  lock.lock();
+  for (uint32_t e : erasing) busy_[e] = 0;
+  release(lock, geometry);
+}
+
+void HostCache::drop(std::unique_lock<std::mutex>& lock, uint32_t geometry) {
+  if (!lru_.contains(geometry)) return;  // nothing stored, or a stale entry already going
+  lru_.erase(geometry);
+  stale_[geometry] = 1;
+  if (busy_[geometry]) return;  // the holder erases it
+  busy_[geometry] = 1;
+  release(lock, geometry);
+}
+
+void HostCache::release(std::unique_lock<std::mutex>& lock, uint32_t geometry) {
+  if (stale_[geometry]) {
+    stale_[geometry] = 0;
+    lock.unlock();
+    store_->erase(geometry);
+    lock.lock();
+  }
+  busy_[geometry] = 0;
+  idle_.notify_all();
 }
 
 void HostCache::markBad(uint32_t geometry, const std::string& why) {
@@ -215,7 +264,7 @@ void HostCache::loaderLoop() {
     auto [g, urgent] = requests_.front();
     requests_.pop_front();
     queued_[g] = 0;
-    uint64_t size = geometryFileBytes(scene_, g);
+    uint64_t size = file_bytes_[g];
     bool wanted = !bad_[g] && !in_flight_[g] && !lru_.contains(g) && lru_.admits(size) &&
                   (urgent || lru_.budget() - lru_.used() >= size);
     if (wanted) {
@@ -223,7 +272,7 @@ void HostCache::loaderLoop() {
       Bytes bytes = readDisk(lock, g);
       if (bytes) {
         ++stats_.prefetched;
-        admit(g, bytes, urgent);
+        admit(lock, g, bytes, urgent);
       }
       loader_busy_ = false;
     }

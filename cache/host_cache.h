@@ -37,6 +37,7 @@ struct HostCacheStats {
   uint64_t prefetched = 0;  // geometries the loader thread brought in
   uint64_t uncached = 0;    // larger than the whole budget: read, used, not kept
   uint64_t skipped = 0;     // unreadable or malformed files, never drawn
+  uint64_t lost = 0;        // RAM-disk entries found missing or short (a failed write)
   uint64_t resident = 0;    // bytes held now (never above the budget)
   friend bool operator==(const HostCacheStats&, const HostCacheStats&) = default;
 };
@@ -77,19 +78,39 @@ class HostCache {
   class MemoryStore;
   class DirectoryStore;
 
-  // With mu_ held: the file's bytes from disk, or null after marking it bad.
+  // All with mu_ held (`lock`), which they release while reading or writing.
+  // The file's bytes from disk, or null after marking it bad.
   Bytes readDisk(std::unique_lock<std::mutex>& lock, uint32_t geometry);
-  void admit(uint32_t geometry, const Bytes& bytes, bool urgent);
+  // Keeps `bytes` as the entry of `geometry` (urgent: may evict).
+  void admit(std::unique_lock<std::mutex>& lock, uint32_t geometry, const Bytes& bytes,
+             bool urgent);
+  // Removes the entry of `geometry`, if held.
+  void drop(std::unique_lock<std::mutex>& lock, uint32_t geometry);
+  // Ends this thread's claim on `geometry` (busy_), first erasing its stored
+  // entry when that went stale meanwhile.
+  void release(std::unique_lock<std::mutex>& lock, uint32_t geometry);
   void markBad(uint32_t geometry, const std::string& why);
   void loaderLoop();
 
   const Scene& scene_;
   std::unique_ptr<Store> store_;
   mutable std::mutex mu_;
-  std::condition_variable changed_;  // in-flight reads finished, requests queued
+  std::condition_variable changed_;  // requests queued or all served, stop
+  // Disk reads (in_flight_) and claims (busy_) ended. Apart from changed_, so
+  // that a claim's end, once per RAM hit, does not wake the loader.
+  std::condition_variable idle_;
   LruBudget lru_;
-  HostCacheStats stats_;                            // counters; stats() adds resident from lru_
-  std::vector<uint8_t> bad_, in_flight_, queued_;   // per geometry
+  HostCacheStats stats_;                           // counters; stats() adds resident from lru_
+  std::vector<uint8_t> bad_, in_flight_, queued_;  // per geometry
+  // The store is read and written without mu_ (with --ram-dir these are file
+  // reads and writes), one operation per geometry at a time: a thread claims
+  // the geometry (busy_) for it, and others wait for the claim to end. An
+  // entry evicted or dropped while claimed is marked stale_ and erased from
+  // the store by the claim's holder, so no file goes while being read.
+  std::vector<uint8_t> busy_, stale_;
+  // Per geometry, from the manifest once: its lookup by file name costs 12 %
+  // of a RAM hit (docs/benchmarks.md, "Issue 14: hot paths (A/B)").
+  std::vector<uint64_t> file_bytes_;
   std::deque<std::pair<uint32_t, bool>> requests_;  // geometry, urgent
   bool loader_busy_ = false;
   bool stop_ = false;

@@ -4,24 +4,45 @@
 
 namespace dmmr {
 
+void LruBudget::link(uint32_t key) {
+  Entry& e = entries_[key];
+  e.prev = last_;
+  e.next = kNone;
+  (last_ == kNone ? first_ : entries_[last_].next) = key;
+  last_ = key;
+}
+
+void LruBudget::unlink(uint32_t key) {
+  Entry& e = entries_[key];
+  (e.prev == kNone ? first_ : entries_[e.prev].next) = e.next;
+  (e.next == kNone ? last_ : entries_[e.next].prev) = e.prev;
+}
+
 bool LruBudget::touch(uint32_t key) {
-  auto it = entries_.find(key);
-  if (it == entries_.end()) return false;
-  order_.splice(order_.end(), order_, it->second.pos);
-  it->second.frame = frame_;
+  if (!contains(key)) return false;
+  if (key != last_) {
+    unlink(key);
+    link(key);
+  }
+  entries_[key].frame = frame_;
   return true;
 }
 
 void LruBudget::add(uint32_t key, uint64_t bytes) {
-  order_.push_back(key);
-  entries_[key] = {std::prev(order_.end()), bytes, frame_};
+  DMMR_CHECK(key != kNone);
+  if (key >= entries_.size()) entries_.resize(size_t(key) + 1);
+  Entry& e = entries_[key];
+  e.held = true;
+  e.bytes = bytes;
+  e.frame = frame_;
+  link(key);
   used_ += bytes;
+  ++size_;
 }
 
 uint32_t LruBudget::victim() const {
-  uint32_t lru = order_.front();
-  if (eviction_ == Eviction::FrameLru && entries_.at(lru).frame == frame_) return order_.back();
-  return lru;
+  if (eviction_ == Eviction::FrameLru && entries_[first_].frame == frame_) return last_;
+  return first_;
 }
 
 void LruBudget::insert(uint32_t key, uint64_t bytes, std::vector<uint32_t>* evicted) {
@@ -42,13 +63,20 @@ bool LruBudget::insertIfFree(uint32_t key, uint64_t bytes) {
 }
 
 uint64_t LruBudget::erase(uint32_t key) {
-  auto it = entries_.find(key);
-  if (it == entries_.end()) return 0;
-  uint64_t bytes = it->second.bytes;
-  order_.erase(it->second.pos);
-  entries_.erase(it);
-  used_ -= bytes;
-  return bytes;
+  if (!contains(key)) return 0;
+  Entry& e = entries_[key];
+  unlink(key);
+  e.held = false;
+  used_ -= e.bytes;
+  --size_;
+  return e.bytes;
+}
+
+std::vector<uint32_t> LruBudget::order() const {
+  std::vector<uint32_t> keys;
+  keys.reserve(size_);
+  for (uint32_t k = first_; k != kNone; k = entries_[k].next) keys.push_back(k);
+  return keys;
 }
 
 }  // namespace dmmr

@@ -5,8 +5,6 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <list>
-#include <unordered_map>
 #include <vector>
 
 namespace dmmr {
@@ -36,8 +34,8 @@ class LruBudget {
 
   uint64_t budget() const { return budget_; }
   uint64_t used() const { return used_; }  // never above budget()
-  size_t size() const { return entries_.size(); }
-  bool contains(uint32_t key) const { return entries_.count(key) != 0; }
+  size_t size() const { return size_; }
+  bool contains(uint32_t key) const { return key < entries_.size() && entries_[key].held; }
 
   // Whether an entry of `bytes` can be held at all. One that cannot is used
   // uncached by the level (and counted there), never squeezed in.
@@ -60,23 +58,31 @@ class LruBudget {
   uint64_t erase(uint32_t key);
 
   // Keys from least to most recently used.
-  std::vector<uint32_t> order() const { return {order_.begin(), order_.end()}; }
+  std::vector<uint32_t> order() const;
 
  private:
+  static constexpr uint32_t kNone = UINT32_MAX;
+  // Keys are geometry indices, dense from 0: entries are indexed by key and
+  // linked in use order through indices (an access is an index, no hash or
+  // allocation: docs/benchmarks.md, "Issue 14: hot paths (A/B)").
   struct Entry {
-    std::list<uint32_t>::iterator pos;
-    uint64_t bytes;
-    uint64_t frame;  // when last used
+    uint32_t prev = kNone, next = kNone;  // towards least / most recently used
+    bool held = false;
+    uint64_t bytes = 0;
+    uint64_t frame = 0;  // when last used
   };
   void add(uint32_t key, uint64_t bytes);
+  void link(uint32_t key);  // as the most recently used
+  void unlink(uint32_t key);
   uint32_t victim() const;
 
   uint64_t budget_;
   Eviction eviction_;
   uint64_t frame_ = 0;
   uint64_t used_ = 0;
-  std::list<uint32_t> order_;  // front: least recently used
-  std::unordered_map<uint32_t, Entry> entries_;
+  size_t size_ = 0;
+  uint32_t first_ = kNone, last_ = kNone;  // least, most recently used
+  std::vector<Entry> entries_;             // by key; grows to the largest key added
 };
 
 }  // namespace dmmr

@@ -635,6 +635,8 @@ class RenderStage {
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
     injectFault("render", job.frame);
+    // Per job: under tiles each tile is a frame for eviction, on purpose
+    // (docs/architecture.md, "Geometry cache").
     gl_.meshes.nextFrame();
     host_.nextFrame();
     GpuCacheStats gpu_before = gl_.meshes.stats();

@@ -56,16 +56,16 @@ struct ReplicatedPlant {
                          &status);
     EXPECT_EQ(status, 0) << log;
   }
-  // Runs 2 clients; returns the per-client sums of the stats CSV's columns
-  // ("c1_disk_bytes" -> sum over frames) and each column's maximum.
+  // Runs `clients` clients; returns the per-client sums of the stats CSV's
+  // columns ("c1_disk_bytes" -> sum over frames) and each column's maximum.
   test::Columns<std::pair<uint64_t, uint64_t>> render(const std::string& out,
-                                                      const std::string& extra) {
+                                                      const std::string& extra, int clients = 2) {
     int status = 0;
-    std::string log =
-        test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
-                             " --no-progress" + kSize + " --scene " + scene + " --walkthrough " +
-                             path + " --out " + out + " --stats " + out + ".csv " + extra,
-                         &status);
+    std::string log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+                                           test::tool("dmmr-render") + " --no-progress" + kSize +
+                                           " --scene " + scene + " --walkthrough " + path +
+                                           " --out " + out + " --stats " + out + ".csv " + extra,
+                                       &status);
     EXPECT_NE(status, 124) << "timed out\n" << log;
     EXPECT_EQ(status, 0) << log;
     test::Columns<std::pair<uint64_t, uint64_t>> cols(out + ".csv");
@@ -141,6 +141,43 @@ TEST_P(SmallBudgets, FramesEqualUnlimitedBudgets) {
 
 INSTANTIATE_TEST_SUITE_P(RamLevel, SmallBudgets, testing::Values(false, true),
                          [](const auto& info) { return info.param ? "RamDisk" : "Memory"; });
+
+// Tiles and the frame-aware eviction (lru.h). The stages start a "frame" for
+// the caches per job, so under tiles each tile is one. That is deliberate:
+// issue 14 suspected it (a frame's working set above the budget would then
+// see plain LRU's cyclic misses), but tiles revisit the objects spanning
+// neighbouring tiles, which LRU keeps and which the whole frame as one
+// eviction frame gives up (it evicts the mesh just drawn once the frame
+// overflows): that doubled the GPU misses here (docs/architecture.md,
+// "Geometry cache"). What must hold: at budgets below a frame's working set,
+// tiles upload and read from disk no more than frustum division. One client
+// and no culling, so that both draw every object in the frustum each frame.
+TEST(TiledFrames, MissNoMoreThanFrustumDivision) {
+  ReplicatedPlant& s = scene();
+  uint64_t gpu = s.geometry_bytes / 12, ram = s.geometry_bytes / 6;
+  std::string common = " --visibility off --gpu-budget " + std::to_string(gpu) + " --ram-budget " +
+                       std::to_string(ram);
+  struct Misses {
+    uint64_t gpu, ram;
+  };
+  auto run = [&](const std::string& name, const std::string& extra) {
+    auto c = s.render(s.dir / name, extra, 1);
+    Misses m{c["c1_gpu_misses"].first, c["c1_ram_misses"].first};
+    std::printf("%-12s GPU misses %llu (hits %llu), RAM misses %llu (hits %llu)\n", name.c_str(),
+                (unsigned long long)m.gpu, (unsigned long long)c["c1_gpu_hits"].first,
+                (unsigned long long)m.ram, (unsigned long long)c["c1_ram_hits"].first);
+    return m;
+  };
+  Misses frustum = run("frustum", common);
+  Misses frustum_lru = run("frustum-lru", common + " --eviction lru");
+  Misses tiled = run("tiles", common + " --balance tiles-static --tile 32x32");
+  for (const FrameDiff& d : compareDirectories(s.reference, s.dir / "tiles"))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name << " " << d.diff;
+  // The budgets are below a frame's working set: plain LRU misses more there.
+  ASSERT_GT(frustum_lru.gpu, frustum.gpu);
+  EXPECT_LT(tiled.gpu, frustum.gpu);
+  EXPECT_LT(tiled.ram, frustum.ram);
+}
 
 TEST(CacheOptions, ABadBudgetIsRefusedWithItsReason) {
   ReplicatedPlant& s = scene();
