@@ -1,5 +1,7 @@
 #include "host_cache.h"
 
+#include "guarded.h"
+
 #include <unistd.h>
 
 #include <atomic>
@@ -9,6 +11,7 @@
 
 #include "atomic_file.h"
 #include "error.h"
+#include "guarded.h"
 
 namespace dmmr {
 
@@ -89,7 +92,21 @@ HostCache::HostCache(const Scene& scene, HostCacheOptions options)
     store_ = std::make_unique<MemoryStore>(scene.manifest.geometries);
   else
     store_ = std::make_unique<DirectoryStore>(options.dir);
-  loader_ = std::thread([this] { loaderLoop(); });
+  // Prefetching is an optimisation: should anything escape the loader (an
+  // allocation failing), gets still read for themselves; the thread must not
+  // end in std::terminate, and drain() must not wait for it.
+  loader_ = std::thread([this] {
+    runGuarded([&] { loaderLoop(); },
+               [&](const std::string& what) {
+                 std::fprintf(stderr, "dmmr: warning: geometry prefetching stopped: %s\n",
+                              what.c_str());
+                 std::lock_guard<std::mutex> lock(mu_);
+                 requests_.clear();
+                 loader_busy_ = false;
+                 stop_ = true;  // prefetch() still queues; nothing waits on the queue
+                 changed_.notify_all();
+               });
+  });
 }
 
 HostCache::~HostCache() {
@@ -246,7 +263,7 @@ void HostCache::nextFrame() {
 
 void HostCache::drain() {
   std::unique_lock<std::mutex> lock(mu_);
-  changed_.wait(lock, [&] { return requests_.empty() && !loader_busy_; });
+  changed_.wait(lock, [&] { return stop_ || (requests_.empty() && !loader_busy_); });
 }
 
 HostCacheStats HostCache::stats() const {
