@@ -8,6 +8,8 @@
 # fill-rate floor (drawing that set alone). Every frame is compared with the
 # reference's.
 # usage: scripts/bench/client_cost.sh   (writes out/bench/client-cost/, prints Markdown)
+# DMMR_BENCH_SCENES and DMMR_BENCH_CONFIGS (space-separated names and labels)
+# run a subset, e.g. DMMR_BENCH_SCENES=plant10m DMMR_BENCH_CONFIGS="pyramid-fused".
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 bin=${DMMR_BIN:-build/bin}
@@ -18,10 +20,16 @@ mkdir -p "$out"
 
 # shellcheck source=lib.sh
 source scripts/bench/lib.sh
-scene plant10m plant --seed 1 --triangles 10000000 --frames 60
-scene monument4m monument --seed 1 --triangles 4000000 --frames 60
+scenes=${DMMR_BENCH_SCENES:-plant10m monument4m skulls25}
 models=${DMMR_MODELS:-../shared/models}
-scene skulls25 replicate --input "$models/skull/skull.obj" --copies 25 --frames 60
+for s in $scenes; do
+  case $s in
+    plant10m) scene plant10m plant --seed 1 --triangles 10000000 --frames 60 ;;
+    monument4m) scene monument4m monument --seed 1 --triangles 4000000 --frames 60 ;;
+    skulls25) scene skulls25 replicate --input "$models/skull/skull.obj" --copies 25 --frames 60 ;;
+    *) echo "client_cost.sh: unknown scene $s" >&2; exit 2 ;;
+  esac
+done
 
 configs=(  # label|dmmr-render options; pyramid-split is the default
   "queries-split|--visibility queries --stages split"
@@ -32,8 +40,15 @@ configs=(  # label|dmmr-render options; pyramid-split is the default
   "auto|--stages auto"
   "off|--visibility off"
 )
+if [ -n "${DMMR_BENCH_CONFIGS:-}" ]; then
+  chosen=()
+  for c in "${configs[@]}"; do
+    [[ " $DMMR_BENCH_CONFIGS " == *" ${c%%|*} "* ]] && chosen+=("$c")
+  done
+  configs=("${chosen[@]}")
+fi
 view=(--width "$size" --height "$size" --no-progress)
-for s in plant10m monument4m skulls25; do
+for s in $scenes; do
   p=walkthroughs/$s.path
   $bin/dmmr-reference --scene "out/bench/$s.scene" --walkthrough "$p" --out "$out/$s-exact" \
     "${view[@]}" --stats "$out/$s-exact.csv" --exact-visible
@@ -50,4 +65,5 @@ for s in plant10m monument4m skulls25; do
     done
   done
 done
-python3 scripts/bench/client_cost_report.py "$out" "$reps" plant10m monument4m skulls25
+# shellcheck disable=SC2086
+python3 scripts/bench/client_cost_report.py "$out" "$reps" $scenes
