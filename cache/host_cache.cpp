@@ -1,7 +1,5 @@
 #include "host_cache.h"
 
-#include "guarded.h"
-
 #include <unistd.h>
 
 #include <atomic>

@@ -10,14 +10,12 @@
 namespace dmmr {
 
 // Runs `body`; an exception escaping it (std::exception or any other type)
-// is passed to `on_escape` as a description, on the same thread. Returns
-// whether `body` returned normally.
+// is passed to `on_escape` as a description, on the same thread.
 template <typename Body, typename OnEscape>
-bool runGuarded(Body&& body, OnEscape&& on_escape) noexcept {
+void runGuarded(Body&& body, OnEscape&& on_escape) noexcept {
   try {
     try {
       body();
-      return true;
     } catch (const std::exception& e) {
       on_escape(std::string(e.what()));
     } catch (...) {
@@ -27,7 +25,6 @@ bool runGuarded(Body&& body, OnEscape&& on_escape) noexcept {
     // on_escape itself failed (the report could not be sent): nothing more
     // can be said here; the caller goes on and drains.
   }
-  return false;
 }
 
 }  // namespace dmmr

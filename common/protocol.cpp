@@ -46,10 +46,7 @@ FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count) {
   Camera& c = j.camera;
   for (double* v : {&c.eye.x, &c.eye.y, &c.eye.z, &c.rotation.x, &c.rotation.y, &c.rotation.z,
                     &c.rotation.w, &c.fovy_deg, &c.aspect, &c.near})
-    *v = r.f64("camera");
-  for (double v : {c.eye.x, c.eye.y, c.eye.z, c.rotation.x, c.rotation.y, c.rotation.z,
-                   c.rotation.w, c.fovy_deg, c.aspect, c.near})
-    if (!std::isfinite(v)) r.fail("camera value is not finite");
+    if (!std::isfinite(*v = r.f64("camera"))) r.fail("camera value is not finite");
   if (!(c.fovy_deg > 0 && c.fovy_deg < 180)) r.fail("field of view outside (0, 180) degrees");
   if (!(c.aspect > 0) || !(c.near > 0)) r.fail("aspect or near plane not positive");
   if (c.rotation.x == 0 && c.rotation.y == 0 && c.rotation.z == 0 && c.rotation.w == 0)

@@ -53,15 +53,8 @@ StatsCsvAppender::~StatsCsvAppender() {
 
 void StatsCsvAppender::append(const std::string& row) {
   if (fd_ < 0) return;
-  const char* p = row.data();
-  size_t left = row.size();
-  while (left > 0) {
-    ssize_t n = ::write(fd_, p, left);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw Error(fileError(path_, std::string("write failed: ") + std::strerror(errno)));
-    p += n;
-    left -= size_t(n);
-  }
+  if (int e = writeAll(fd_, row))
+    throw Error(fileError(path_, std::string("write failed: ") + std::strerror(e)));
 }
 
 }  // namespace dmmr

@@ -17,11 +17,10 @@ namespace dmmr {
 std::string resumeStatsCsv(const std::string& path, const std::string& header, uint32_t from_frame);
 
 // The stats CSV as a run writes it: `start` (header and kept rows) written
-// atomically once, then one append per finished frame, each a whole row in
-// one write(2). Rewriting the file per frame costs O(frames^2) bytes over a
-// run; appending costs each row once. A row torn by a kill is the file's last
-// line, without its newline, and resumeStatsCsv drops it; every row before it
-// is whole. An empty path writes nothing.
+// atomically once, then one append per finished frame, a whole row each. Rewriting the file per
+// frame costs O(frames^2) bytes over a run; appending costs each row once. A row torn by a kill is
+// the file's last line, without its newline, and resumeStatsCsv drops it; every row before it is
+// whole. An empty path writes nothing.
 class StatsCsvAppender {
  public:
   StatsCsvAppender(const std::string& path, const std::string& start);

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <thread>
 
 namespace dmmr {
 
@@ -38,27 +37,11 @@ uint64_t FramePlanner::weightOf(uint32_t o) const {
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
                                                 const Camera& camera, int width, int height) const {
   FootprintProjector project(camera, width, height);
-  // Projection is independent per object: large frames use the server's
-  // cores, each thread filling its own slice, concatenated in order.
-  constexpr size_t kPerThread = 16384;
-  size_t threads = std::min<size_t>(
-      {std::max(1u, std::thread::hardware_concurrency()), 8, visible.size() / kPerThread + 1});
-  std::vector<std::vector<Footprint>> parts(threads);
-  auto work = [&](size_t t) {
-    size_t begin = visible.size() * t / threads, end = visible.size() * (t + 1) / threads;
-    parts[t].reserve(end - begin);
-    Footprint f;
-    for (size_t k = begin; k < end; ++k)
-      if (project(boxes_[visible[k]].box, weightOf(visible[k]), visible[k], &f))
-        parts[t].push_back(f);
-  };
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (auto& th : pool) th.join();
-  std::vector<Footprint> items = std::move(parts[0]);
-  for (size_t t = 1; t < threads; ++t) items.insert(items.end(), parts[t].begin(), parts[t].end());
-  return items;
+  return projectInSlices(visible.size(), footprintThreads(visible.size()),
+                         [&](size_t k, Footprint* f) {
+                           uint32_t o = visible[k];
+                           return project(boxes_[o].box, weightOf(o), o, f);
+                         });
 }
 
 FramePlan planFrame(const Scene& scene, const Camera& camera, int width, int height, int clients) {

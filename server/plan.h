@@ -2,8 +2,10 @@
 // division into one region and object list per client.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
+#include <thread>
 #include <vector>
 
 #include "cull.h"
@@ -32,6 +34,35 @@ struct TilePlan {
   double cull_ms = 0;
   double divide_ms = 0;  // footprints and the per-tile lists
 };
+
+// Threads for projecting `n` footprints: projection is independent per
+// object, so large frames use the server's cores, one thread per 16384
+// objects (below that a thread's start costs more than it saves), at most 8.
+inline size_t footprintThreads(size_t n) {
+  return std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), 8, n / 16384 + 1});
+}
+
+// The footprints of items 0..n-1, in item order: `project(k, &f)` fills f
+// and says whether item k has one. Slices 1..threads-1 run on threads
+// spawned for the call, slice 0 on the caller's. Requires threads >= 1.
+template <typename Project>
+std::vector<Footprint> projectInSlices(size_t n, size_t threads, const Project& project) {
+  std::vector<std::vector<Footprint>> parts(threads);
+  auto work = [&](size_t t) {
+    size_t begin = n * t / threads, end = n * (t + 1) / threads;
+    parts[t].reserve(end - begin);
+    Footprint f;
+    for (size_t k = begin; k < end; ++k)
+      if (project(k, &f)) parts[t].push_back(f);
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (auto& th : pool) th.join();
+  std::vector<Footprint> items = std::move(parts[0]);
+  for (size_t t = 1; t < threads; ++t) items.insert(items.end(), parts[t].begin(), parts[t].end());
+  return items;
+}
 
 // Plans frames of one scene. Keeps a compact copy of what projection needs
 // (each object's tight box and weight, 56 bytes instead of the whole bounds

@@ -41,6 +41,11 @@ bool injectedServerFault(const char* what) {
   return spec && std::strncmp(spec, "server:", 7) == 0 && std::strcmp(spec + 7, what) == 0;
 }
 
+// "client K (rank K)", as every message naming a client says it.
+std::string clientName(int k) {
+  return "client " + std::to_string(k) + " (rank " + std::to_string(k) + ")";
+}
+
 double msBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
@@ -129,7 +134,7 @@ class Assembler {
   // be blocked sending a sub-frame while the planner is blocked sending it
   // a job, and only a receive here frees both. What arrives is still
   // assembled: a frame whose sub-frames all come is finished work, and is
-  // written (late() does the same during the shutdown). client_timeout_s
+  // written (take() does the same during the shutdown). client_timeout_s
   // without any message ends the run either way (silent).
   void run() {
     auto last = Clock::now();
@@ -144,13 +149,14 @@ class Assembler {
         continue;
       }
       last = Clock::now();
-      late(*got);
+      take(*got);
     }
   }
 
-  // A message after the last frame was planned, or after a failure; any
-  // error in it becomes the run's failure (the first one is reported).
-  void late(const Message& m) {
+  // Handles one message (on this thread, or during the shutdown once it has
+  // returned); an error in it becomes the run's failure (the first one is
+  // reported).
+  void take(const Message& m) {
     try {
       handle(m);
     } catch (const std::exception& e) {
@@ -183,14 +189,12 @@ class Assembler {
         const FrameRecord& rec = pending_.begin()->second;
         for (int k = 1; k <= clients_; ++k)
           if (int n = rec.owed[size_t(k - 1)]; n > 0) {
-            who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(k) +
-                   " (rank " + std::to_string(k) + ")";
+            who += (who.empty() ? "" : ", ") + clientName(k);
             owed += (owed.empty() ? "" : ", ") + std::to_string(n) + " from client " +
                     std::to_string(k);
           }
       }
-      if (int k = sending_to_.load(); k > 0 && failed_)
-        who = "client " + std::to_string(k) + " (rank " + std::to_string(k) + ")";
+      if (int k = sending_to_.load(); k > 0 && failed_) who = clientName(k);
     }
     std::fprintf(stderr,
                  "\ndmmr-render: server (rank 0): %s sent nothing for %.0f s while frame %u "
@@ -201,16 +205,13 @@ class Assembler {
     comm_.abort(3);
   }
 
-  // Test hook (DMMR_INJECT_FAULT=server:send-record): true once every
-  // sub-frame of `frame` is in, so that the send time lands while the
-  // assembler finishes the frame.
-  bool receivedAll(uint32_t frame) const {
-    std::lock_guard<std::mutex> lock(mu_);
-    auto it = pending_.find(frame);
-    return it == pending_.end() || it->second.received == it->second.expected;
-  }
-
   void setSendMs(uint32_t frame, double ms) {
+    if (injectedServerFault("send-record")) {  // land inside finishFrame's sleep
+      auto deadline = Clock::now() + std::chrono::seconds(5);
+      while (!receivedAll(frame) && Clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
     std::lock_guard<std::mutex> lock(mu_);
     // The frame may already be assembled (its last sub-frame raced this
     // call); then its row went out without the send time.
@@ -226,6 +227,13 @@ class Assembler {
 
  private:
   static constexpr double kPollS = 0.05;  // how often a waiting receive checks for a failure
+
+  // For the send-record hook: every sub-frame of `frame` is in.
+  bool receivedAll(uint32_t frame) const {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = pending_.find(frame);
+    return it == pending_.end() || it->second.received == it->second.expected;
+  }
 
   void handle(const Message& m) {
     if (m.tag == Tag::Error) {
@@ -413,10 +421,10 @@ double measureRoundTripMs(Comm& comm, int clients) {
 }
 
 // Tells every client to stop and waits until each has said Bye, receiving
-// whatever they still send (handed to `late`, or dropped), so no rank is
+// whatever they still send (handed to `take`, or dropped), so no rank is
 // left blocked.
 void shutdownClients(Comm& comm, int clients, double timeout_s,
-                     const std::function<void(const Message&)>& late = {}) {
+                     const std::function<void(const Message&)>& take = {}) {
   for (int k = 1; k <= clients; ++k) comm.send(k, Tag::Shutdown, {});
   std::vector<uint8_t> bye(size_t(clients) + 1, 0);
   for (int byes = 0; byes < clients;) {
@@ -434,8 +442,8 @@ void shutdownClients(Comm& comm, int clients, double timeout_s,
     if (m->tag == Tag::Bye && !bye[size_t(m->source)]) {
       bye[size_t(m->source)] = 1;
       ++byes;
-    } else if (m->tag != Tag::Bye && late) {
-      late(*m);
+    } else if (m->tag != Tag::Bye && take) {
+      take(*m);
     }
   }
 }
@@ -485,9 +493,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     if (!m) {
       std::string who;
       for (int c = 1; c <= clients; ++c)
-        if (!answered[size_t(c)])
-          who += (who.empty() ? "" : ", ") + std::string("client ") + std::to_string(c) +
-                 " (rank " + std::to_string(c) + ")";
+        if (!answered[size_t(c)]) who += (who.empty() ? "" : ", ") + clientName(c);
       std::fprintf(stderr,
                    "dmmr-render: server (rank 0): %s did not say whether it is ready within "
                    "%.0f s (--client-timeout): it died or hangs while starting; aborting\n",
@@ -541,10 +547,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   auto nowMs = [] {
     return std::chrono::duration<double, std::milli>(Clock::now().time_since_epoch()).count();
   };
-  // Everything the planning thread does is inside the try: an exception
+  // Everything the planning thread does is guarded: an exception of any type
   // ends the run through the assembler, never as std::terminate of a
   // joinable thread.
-  try {
+  auto planFrames = [&] {
     for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
       uint32_t i = f - opts.from_frame;
       if (trial && trial->boundary(i)) {
@@ -617,25 +623,17 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         }
         assembler.sendingTo(0);
       }
-      double send_ms = msBetween(ts, Clock::now());
-      if (injectedServerFault("send-record")) {
-        auto deadline = Clock::now() + std::chrono::seconds(5);
-        while (!assembler.receivedAll(f) && Clock::now() < deadline)
-          std::this_thread::sleep_for(std::chrono::milliseconds(1));
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));  // inside finishFrame's sleep
-      }
-      assembler.setSendMs(f, send_ms);
+      assembler.setSendMs(f, msBetween(ts, Clock::now()));
     }
-  } catch (const std::exception& e) {
-    assembler.markFailed(std::string("server: ") + e.what());
-  }
+  };
+  runGuarded(planFrames, [&](const std::string& what) { assembler.markFailed("server: " + what); });
   assembler.plannerDone();
   assembling.join();
   if (opts.progress) std::fprintf(stderr, "\n");
   // Sub-frames still on their way complete frames that every client
   // finished before a failure.
   shutdownClients(comm, clients, opts.client_timeout_s,
-                  [&](const Message& m) { assembler.late(m); });
+                  [&](const Message& m) { assembler.take(m); });
   if (assembler.failed()) {
     std::fprintf(stderr, "dmmr-render: %s\n", assembler.error().c_str());
     return 1;

@@ -1,6 +1,6 @@
 // Benchmark (not a test): what the threads FramePlanner::footprints spawns
 // per frame cost against the projection they share (issue 14). For N random
-// boxes in view it times, with the same loop as footprints(): one thread;
+// boxes in view it times, with footprints()'s projectInSlices: one thread;
 // the threads spawned per call as footprints() does (hardware threads, at
 // most 8, one per 16384 boxes); and an empty spawn and join alone.
 //
@@ -14,7 +14,7 @@
 #include <thread>
 #include <vector>
 
-#include "divide.h"
+#include "plan.h"
 
 using namespace dmmr;
 
@@ -38,23 +38,11 @@ double medianMs(int runs, F f) {
   return ms[ms.size() / 2];
 }
 
-// footprints()'s loop over `threads` slices, slices 1.. on spawned threads.
+// footprints()'s projection, over `threads` slices.
 size_t project(const FootprintProjector& p, const std::vector<Box3d>& boxes, size_t threads) {
-  std::vector<std::vector<Footprint>> parts(threads);
-  auto work = [&](size_t t) {
-    size_t begin = boxes.size() * t / threads, end = boxes.size() * (t + 1) / threads;
-    parts[t].reserve(end - begin);
-    Footprint f;
-    for (size_t k = begin; k < end; ++k)
-      if (p(boxes[k], 1000, uint32_t(k), &f)) parts[t].push_back(f);
-  };
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (auto& th : pool) th.join();
-  std::vector<Footprint> items = std::move(parts[0]);
-  for (size_t t = 1; t < threads; ++t) items.insert(items.end(), parts[t].begin(), parts[t].end());
-  return items.size();
+  return projectInSlices(boxes.size(), threads,
+                         [&](size_t k, Footprint* f) { return p(boxes[k], 1000, uint32_t(k), f); })
+      .size();
 }
 
 }  // namespace
@@ -86,7 +74,7 @@ int main(int argc, char** argv) {
       b.expand(Vec3d{x + s, y + s, z + s});
       boxes.push_back(b);
     }
-    size_t threads = std::min<size_t>({hw, 8, n / 16384 + 1});
+    size_t threads = footprintThreads(n);
     size_t sink = 0;
     double one = medianMs(runs, [&] { sink += project(projector, boxes, 1); });
     double many = medianMs(runs, [&] { sink += project(projector, boxes, threads); });

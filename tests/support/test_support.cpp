@@ -9,6 +9,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdio>
 
 namespace dmmr::test {
@@ -57,7 +58,8 @@ int run(const std::string& command) {
   return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
 }
 
-std::string runCapture(const std::string& command, int* status) {
+std::string runCapture(const std::string& command, int* status, double* seconds) {
+  auto t0 = std::chrono::steady_clock::now();
   std::string out;
   FILE* p = ::popen((command + " 2>&1").c_str(), "r");
   if (!p) {
@@ -69,6 +71,8 @@ std::string runCapture(const std::string& command, int* status) {
   while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
   int s = ::pclose(p);
   *status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  if (seconds)
+    *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 

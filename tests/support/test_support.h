@@ -53,7 +53,9 @@ std::string slug(const std::string& text);
 // Runs a shell command; returns its exit status (-1 when it did not exit).
 int run(const std::string& command);
 // Runs a command and returns its stdout+stderr; *status gets the exit status.
-std::string runCapture(const std::string& command, int* status);
+// With `seconds`, also the command's wall time (tests that a failure ends
+// the run promptly).
+std::string runCapture(const std::string& command, int* status, double* seconds = nullptr);
 
 // Values by column name, read strictly: reading a column that is not there
 // throws Error naming the file and the column, so a renamed column fails its
