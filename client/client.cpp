@@ -14,6 +14,7 @@
 #include <mutex>
 #include <thread>
 
+#include "cpu_time.h"
 #include "depth_pyramid.h"
 #include "draw.h"
 #include "error.h"
@@ -24,6 +25,7 @@
 #include "protocol.h"
 #include "queue.h"
 #include "scene.h"
+#include "stage_turns.h"
 
 namespace dmmr {
 
@@ -566,6 +568,7 @@ class VisibilityStage {
     if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
       gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache);
       culler_ = std::make_unique<Culler>(scene, opts_, *gl_);
+      if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
     }
   }
 
@@ -586,10 +589,13 @@ class VisibilityStage {
       out.job = std::move(job);
       return out;
     }
+    StageTurns::Hold turn(turns_.get());
+    double cpu0 = threadCpuMs();
     gl_->meshes.nextFrame();
     GpuCacheStats before = gl_->meshes.stats();
     Decision d = culler_->decide(job);
     addGpuStats(out.stats, before, gl_->meshes.stats());
+    out.stats.vis_cpu_ms = threadCpuMs() - cpu0;
     out.culled = true;
     out.visible = std::move(d.visible);
     out.stats.prepare_ms = d.prepare_ms;
@@ -615,6 +621,7 @@ class VisibilityStage {
   StageControl& control_;
   std::unique_ptr<GlStage> gl_;
   std::unique_ptr<Culler> culler_;
+  std::unique_ptr<StageTurns> turns_;
 };
 
 class RenderStage {
@@ -630,11 +637,14 @@ class RenderStage {
     if (opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
+    if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
   }
 
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
     injectFault("render", job.frame);
+    StageTurns::Hold turn(turns_.get());
+    double cpu0 = threadCpuMs();
     // Per job: under tiles each tile is a frame for eviction, on purpose
     // (docs/architecture.md, "Geometry cache").
     gl_.meshes.nextFrame();
@@ -708,6 +718,7 @@ class RenderStage {
     st.compress_ms = msSince(tc);
     st.bytes_raw = rgb_.size();
     st.bytes_sent = out.data.size();
+    st.render_cpu_ms = threadCpuMs() - cpu0;
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
     std::string chosen = control_.finished(job.frame);
@@ -725,6 +736,7 @@ class RenderStage {
   GlStage gl_;
   StageControl& control_;
   std::unique_ptr<Culler> culler_;
+  std::unique_ptr<StageTurns> turns_;
   HostCacheStats host_before_;
   int rank_;
   double last_send_ms_ = 0;

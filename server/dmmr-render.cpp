@@ -86,6 +86,10 @@ int main(int argc, char** argv) {
   app.add_option("--tiles-in-flight", s.tile_window,
                  "tiles-dynamic: tiles given to a client before it returns one")
       ->check(CLI::Range(1, 4));
+  app.add_option("--stage-turns", c.stage_turns,
+                 "benchmark mode, one machine: the GL stages of every client take turns, "
+                 "holding a lock on this file while they work on a job, so that each stage's "
+                 "time is its own (docs/benchmarks.md, per-client cost)");
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");

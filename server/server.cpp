@@ -70,10 +70,11 @@ std::string statsHeader(int clients) {
       "objects_in_frustum,triangles_in_frustum";
   for (int k = 1; k <= clients; ++k)
     for (const char* c :
-         {"objects",     "occluders",  "queried",    "visible",   "triangles",    "prepare_ms",
-          "retrieve_ms", "pass_ms",    "load_ms",    "render_ms", "readback_ms",  "compress_ms",
-          "send_ms",     "bytes_raw",  "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
-          "ram_misses",  "disk_bytes", "uncached",   "skipped",   "gpu_resident", "ram_resident"})
+         {"objects",     "occluders",    "queried",    "visible",   "triangles",    "prepare_ms",
+          "retrieve_ms", "pass_ms",      "load_ms",    "render_ms", "readback_ms",  "compress_ms",
+          "send_ms",     "bytes_raw",    "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
+          "ram_misses",  "disk_bytes",   "uncached",   "skipped",   "gpu_resident", "ram_resident",
+          "vis_cpu_ms",  "render_cpu_ms"})
       h += ",c" + std::to_string(k) + "_" + c;
   return h + "\n";
 }
@@ -310,7 +311,8 @@ class Assembler {
           << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms << ","
           << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent << "," << c.gpu_hits << ","
           << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
-          << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident;
+          << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
+          << c.vis_cpu_ms << "," << c.render_cpu_ms;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
     last_done_ = done;
     if (opts_.progress) std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);

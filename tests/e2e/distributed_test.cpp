@@ -248,6 +248,25 @@ TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
     EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
 }
 
+// The benchmark mode in which GL stages take turns (--stage-turns) changes
+// only when stages run: frames stay exact, with split stages (two GL stages
+// per client) and 2 clients, and every client records its stage threads'
+// CPU time.
+TEST(DistributedErrors, StagesTakingTurnsAreExactAndRecordTheirCpuTime) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "turns";
+  s.render(
+      2, out,
+      "--stages split --stats " + out + ".csv --stage-turns " + std::string(s.dir / "turns.lock"));
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
+  ASSERT_EQ(rows.size(), 4u);
+  for (const test::CsvRow& r : rows)
+    for (const char* c : {"c1_render_cpu_ms", "c2_render_cpu_ms"}) EXPECT_GT(r[c], 0) << c;
+}
+
 TEST(DistributedErrors, ClientWithoutAContextStopsTheRunWithItsMessage) {
   SmallScene& s = smallScene();
   int status = 0;
