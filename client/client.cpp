@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
 #include <cstdlib>
@@ -68,6 +69,21 @@ void injectFault(const char* stage, uint32_t frame) {
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
   if (std::strcmp(rest, ":foreign") == 0) throw int(frame);
   throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(at));
+}
+
+// Test and benchmark hook: DMMR_SLOW_CLIENT=RANK:FACTOR (FACTOR > 1) makes
+// client RANK's render stage take FACTOR times its CPU time on each job, by
+// spinning, as a CPU that much slower would (heterogeneous clients; with
+// LP_NUM_THREADS=0 the stage's CPU time is its whole work). Returns 1 for
+// every other client.
+double slowFactor(int rank) {
+  const char* spec = std::getenv("DMMR_SLOW_CLIENT");
+  if (!spec) return 1;
+  char* rest = nullptr;
+  long r = std::strtol(spec, &rest, 10);
+  if (r != rank || *rest != ':') return 1;
+  double f = std::strtod(rest + 1, nullptr);
+  return std::isfinite(f) && f > 1 ? f : 1;
 }
 
 void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheStats& after) {
@@ -638,6 +654,7 @@ class RenderStage {
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
     if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
+    slow_ = slowFactor(opts.rank);
   }
 
   SubFrame run(const VisibleJob& v) {
@@ -687,6 +704,11 @@ class RenderStage {
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
+    if (slow_ > 1) {  // DMMR_SLOW_CLIENT: spin (slow_ - 1) times the work so far
+      double until = threadCpuMs() + (slow_ - 1) * (threadCpuMs() - cpu0);
+      while (threadCpuMs() < until) {
+      }
+    }
     addGpuStats(st, gpu_before, gl_.meshes.stats());
     // The host levels are shared by both stages; each sub-frame reports
     // their activity since the previous one.
@@ -737,6 +759,7 @@ class RenderStage {
   StageControl& control_;
   std::unique_ptr<Culler> culler_;
   std::unique_ptr<StageTurns> turns_;
+  double slow_ = 1;  // DMMR_SLOW_CLIENT
   HostCacheStats host_before_;
   int rank_;
   double last_send_ms_ = 0;

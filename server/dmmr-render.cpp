@@ -53,8 +53,10 @@ int main(int argc, char** argv) {
                  "(large: never)");
   std::string weights = "visible";
   app.add_option("--weights", weights,
-                 "division weights: visible (drawn lately) or frustum (all triangles)")
-      ->check(CLI::IsMember({"visible", "frustum"}));
+                 "division weights: visible (triangles drawn lately), fitted (a cost model and "
+                 "each client's speed fitted to the clients' measured times) or frustum (all "
+                 "triangles)")
+      ->check(CLI::IsMember({"visible", "fitted", "frustum"}));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')
@@ -123,7 +125,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
     return 1;
   }
-  s.visible_weights = weights == "visible";
+  s.visible_weights = weights == "visible" || weights == "fitted";
+  s.fitted_weights = weights == "fitted";
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
