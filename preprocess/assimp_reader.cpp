@@ -89,13 +89,15 @@ class ConfinedIOSystem : public Assimp::DefaultIOSystem {
   std::string problem_;
 };
 
-// Every "uri" string in a glTF's JSON (buffers and images), read with a SAX
-// parser so a large embedded data: URI is not held twice. A malformed file
-// yields what was seen; assimp then reports the error.
+// The URIs of a glTF's buffers and images (`buffers[i].uri`,
+// `images[i].uri`; not those in extras), read with a SAX parser so a large
+// embedded data: URI is not held twice. A malformed file yields what was
+// seen; assimp then reports the error.
 std::vector<std::string> gltfUris(const std::string& path) {
   struct Sax : nlohmann::json_sax<nlohmann::json> {
     std::vector<std::string> uris;
-    bool uriKey = false;
+    int depth = 0;  // 1 inside the top-level object, 3 inside an element of its arrays
+    bool files = false, uriKey = false;
     bool value() {
       uriKey = false;
       return true;
@@ -110,14 +112,27 @@ std::vector<std::string> gltfUris(const std::string& path) {
       return value();
     }
     bool binary(binary_t&) override { return value(); }
-    bool start_object(std::size_t) override { return value(); }
+    bool start_object(std::size_t) override {
+      ++depth;
+      return value();
+    }
     bool key(string_t& k) override {
-      uriKey = k == "uri";
+      if (depth == 1) files = k == "buffers" || k == "images";
+      uriKey = depth == 3 && files && k == "uri";
       return true;
     }
-    bool end_object() override { return value(); }
-    bool start_array(std::size_t) override { return value(); }
-    bool end_array() override { return value(); }
+    bool end_object() override {
+      --depth;
+      return value();
+    }
+    bool start_array(std::size_t) override {
+      ++depth;
+      return value();
+    }
+    bool end_array() override {
+      --depth;
+      return value();
+    }
     bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
       return false;
     }

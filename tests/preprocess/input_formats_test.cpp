@@ -260,6 +260,15 @@ TEST(Gltf, ExternalBufferAndANodeHierarchyMatchAssimpAndTheKnownCube) {
   expectCubeScene(dir / "cube.gltf", dir / "scene");
 }
 
+TEST(Gltf, UrisInExtrasAreNotFilesToRead) {
+  TempDir dir;
+  writeBytes(dir / "cube.bin", cubeBuffer());
+  std::string json = gltfJson({"cube.bin", ""}, cubeBuffer().size());
+  json.insert(1, R"("extras": {"uri": "http://example.com/about", "more": [{"uri": "/x"}]}, )");
+  writeText(dir / "cube.gltf", json);
+  expectCubeScene(dir / "cube.gltf", dir / "scene");
+}
+
 TEST(Gltf, BufferInASubdirectoryIsRead) {
   TempDir dir;
   fs::create_directories(dir / "data");
