@@ -145,7 +145,7 @@ class Culler {
   Decision decide(const FrameJob& job) {
     Decision d;
     auto t0 = Clock::now();
-    startFrame(job.frame);
+    startFrame(job);
     VisibilityPlan plan = planFor(job);
     Renderer& r = gl_.renderer;
     r.beginDepthFrame(job.camera, job.region);
@@ -192,7 +192,7 @@ class Culler {
   // reference does. `draw` draws one object. Returns what was drawn.
   Decision drawFused(const FrameJob& job, const DrawFn& draw) {
     Decision d;
-    startFrame(job.frame);
+    startFrame(job);
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
     for (uint32_t o : first) d.triangles += draw(o);
@@ -284,7 +284,7 @@ class Culler {
   // between fused ones): its visible list (ascending) is this one's next
   // occluder set, so that a switch finds the list current.
   void adopt(const FrameJob& job, const std::vector<uint32_t>& visible) {
-    startFrame(job.frame);
+    startFrame(job);
     visible_now_.insert(visible_now_.end(), visible.begin(), visible.end());
   }
 
@@ -311,23 +311,42 @@ class Culler {
     static const std::vector<uint32_t> kNone;
     const auto& potential =
         opts_.potential_every_frame || previous_.empty() ? scene_.occluders : kNone;
-    return planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
+    // Last frame's visible list, and what the server says others drew among
+    // objects that were not in this client's region last frame (a split
+    // line moved): without it those would all be new, tested against a
+    // depth that lacks them and, with fused stages, redrawn.
+    std::vector<uint32_t> arrived;
+    std::set_difference(job.hints.begin(), job.hints.end(), last_region_.begin(),
+                        last_region_.end(), std::back_inserter(arrived));
+    if (arrived.empty())
+      return planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
+    return planVisibility(job.objects, mergeSorted({previous_, arrived}), potential, marked_until_,
+                          job.frame);
   }
 
   // A frame can come as several jobs (tiles): what they found visible is the
   // next frame's occluder set, and what passed a test is marked from the next
   // frame on, so a frame's later tiles are not handed its earlier tiles'
-  // objects untested.
-  void startFrame(uint32_t frame) {
-    if (frame == frame_) return;
-    for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
-    // The jobs' lists, each ascending, one after another.
-    std::sort(visible_now_.begin(), visible_now_.end());
-    visible_now_.erase(std::unique(visible_now_.begin(), visible_now_.end()), visible_now_.end());
-    previous_.swap(visible_now_);
-    passed_now_.clear();
-    visible_now_.clear();
-    frame_ = frame;
+  // objects untested. The jobs' objects make the region the next frame's
+  // hints are taken against.
+  void startFrame(const FrameJob& job) {
+    if (job.frame != frame_) {
+      for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
+      sortUnique(&visible_now_);  // the jobs' lists, each ascending, one after another
+      previous_.swap(visible_now_);
+      sortUnique(&region_now_);
+      last_region_.swap(region_now_);
+      passed_now_.clear();
+      visible_now_.clear();
+      region_now_.clear();
+      frame_ = job.frame;
+    }
+    region_now_.insert(region_now_.end(), job.objects.begin(), job.objects.end());
+  }
+
+  static void sortUnique(std::vector<uint32_t>* v) {
+    std::sort(v->begin(), v->end());
+    v->erase(std::unique(v->begin(), v->end()), v->end());
   }
 
   // Whether any fragment of `objects` has exactly the depth already in the
@@ -494,6 +513,7 @@ class Culler {
   VisibilityOptions opts_;
   GlStage& gl_;
   std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
+  std::vector<uint32_t> last_region_, region_now_;  // the jobs' objects, last frame and this
   std::vector<uint32_t> marked_until_;              // per object: first frame to test again
   uint32_t frame_ = UINT32_MAX;                     // the frame of the jobs being decided
   std::vector<uint32_t> visible_now_, passed_now_;  // this frame's, over its jobs

@@ -1,5 +1,6 @@
 #include "protocol.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "bytes.h"
@@ -36,6 +37,8 @@ std::vector<uint8_t> encodeJob(const FrameJob& j) {
   w.u32(uint32_t(j.objects.size()));
   w.array(j.objects.data(), j.objects.size());
   w.u8(j.flush ? 1 : 0);
+  w.u32(uint32_t(j.hints.size()));
+  w.array(j.hints.data(), j.hints.size());
   return std::move(w.bytes());
 }
 
@@ -64,6 +67,13 @@ FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count) {
   uint8_t flush = r.u8("flush");
   if (flush > 1) r.fail("flush is neither 0 nor 1");
   j.flush = flush == 1;
+  r.array(&j.hints, r.u32("hint count"), "hints");
+  auto in = j.objects.begin();
+  for (size_t i = 0; i < j.hints.size(); ++i) {
+    if (i > 0 && j.hints[i] <= j.hints[i - 1]) r.fail("hints not ascending");
+    in = std::lower_bound(in, j.objects.end(), j.hints[i]);
+    if (in == j.objects.end() || *in != j.hints[i]) r.fail("a hint that is not among the objects");
+  }
   r.finish();
   return j;
 }

@@ -22,6 +22,12 @@ struct FrameJob {
   // the last of a client's tiles in a frame under --balance tiles-static,
   // whose clients return their tiles in one batch.
   bool flush = true;
+  // Of `objects` (ascending, a subset): those some client drew lately, as
+  // far as the server knows. A client takes those it did not have in its
+  // own region last frame as likely visible (they start its occluder set),
+  // so that a split line that moved does not make a neighbour's visible
+  // objects new to it. A hint never changes a pixel, only the order of work.
+  std::vector<uint32_t> hints;
   friend bool operator==(const FrameJob&, const FrameJob&) = default;
 };
 
@@ -74,9 +80,9 @@ std::vector<uint8_t> encodeJob(const FrameJob& j);
 // Decodes a Job for a scene of `object_count` objects. A job is a peer's
 // input, and clients index the scene with it: throws Error (naming the
 // message) unless its objects ascend strictly below `object_count`, its
-// region lies inside its frame, and its camera is finite with a field of
-// view in (0, 180) degrees, positive aspect and near, and a non-zero
-// rotation.
+// hints ascend strictly and are among its objects, its region lies inside
+// its frame, and its camera is finite with a field of view in (0, 180)
+// degrees, positive aspect and near, and a non-zero rotation.
 FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count);
 std::vector<uint8_t> encodeSubFrame(const SubFrame& s);
 SubFrame decodeSubFrame(const std::vector<uint8_t>& bytes);

@@ -24,7 +24,21 @@ void FramePlanner::reportDrawn(uint32_t frame, const std::vector<uint32_t>& obje
       while (old < v && !drawn_in_[o].compare_exchange_weak(old, v, std::memory_order_relaxed)) {
       }
     }
+  uint32_t v = frame + 1, old = latest_drawn_.load(std::memory_order_relaxed);
+  while (old < v && !latest_drawn_.compare_exchange_weak(old, v, std::memory_order_relaxed)) {
+  }
   feedback_.store(true, std::memory_order_relaxed);
+}
+
+std::vector<uint32_t> FramePlanner::drawnLately(const std::vector<uint32_t>& objects) const {
+  std::vector<uint32_t> out;
+  uint32_t latest = latest_drawn_.load(std::memory_order_relaxed);
+  if (latest == 0) return out;
+  for (uint32_t o : objects) {
+    uint32_t seen = o < boxes_.size() ? drawn_in_[o].load(std::memory_order_relaxed) : 0;
+    if (seen != 0 && seen + kHintFrames > latest) out.push_back(o);
+  }
+  return out;
 }
 
 void FramePlanner::reportCosts(const std::vector<CostSample>& samples) {

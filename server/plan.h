@@ -84,6 +84,10 @@ class FramePlanner {
   // reports while the planner plans.
   void reportDrawn(uint32_t frame, const std::vector<uint32_t>& objects);
   void planningFrame(uint32_t frame) { frame_ = frame; }
+  // Of `objects` (ascending): those drawn in the last kHintFrames frames
+  // reported (FrameJob::hints). Empty before any report.
+  std::vector<uint32_t> drawnLately(const std::vector<uint32_t>& objects) const;
+  static constexpr uint32_t kHintFrames = 2;
   static constexpr uint32_t kSeenFrames = 8;
   static constexpr uint64_t kHiddenWeight = 1;
 
@@ -116,6 +120,7 @@ class FramePlanner {
   // atomics: these are hints, read while the assembler writes them.
   std::unique_ptr<std::atomic<uint32_t>[]> drawn_in_;
   std::atomic<bool> feedback_{false};
+  std::atomic<uint32_t> latest_drawn_{0};  // 1 + the latest frame reported
   uint32_t frame_ = 0;
   mutable std::mutex cost_mu_;                        // guards the fields below
   std::vector<std::vector<CostSample>> cost_frames_;  // the last kCostFrames frames' samples

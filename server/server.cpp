@@ -610,9 +610,12 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.divide_ms = plan.divide_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
-        for (int k = 0; k < clients; ++k)
+        for (int k = 0; k < clients; ++k) {
           jobs.push_back({k + 1, FrameJob{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
                                           std::move(plan.regions[size_t(k)].objects)}});
+          if (opts.visible_weights)
+            jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
+        }
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
         rec.cull_ms = plan.cull_ms;
@@ -620,7 +623,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         auto job = [&](size_t t) {
-          return FrameJob{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
+          FrameJob j{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
+          if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
+          return j;
         };
         if (balance == Balance::TilesStatic) {
           auto dealt = dealTiles(plan.tiles.size(), plan.columns, clients, opts.tile_order);

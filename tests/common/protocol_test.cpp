@@ -89,6 +89,24 @@ TEST(Protocol, JobRejectsObjectsNotAscending) {
   EXPECT_NE(jobError(j).find("not ascending"), std::string::npos);
 }
 
+TEST(Protocol, JobRoundTripsWithItsHints) {
+  FrameJob j = sampleJob();
+  j.hints = {5, 4000000000u};
+  EXPECT_EQ(decodeJob(encodeJob(j), kObjects), j);
+}
+
+TEST(Protocol, JobRejectsHintsNotAmongItsObjectsOrNotAscending) {
+  FrameJob j = sampleJob();
+  j.hints = {2};  // not an object of the job
+  EXPECT_NE(jobError(j).find("not among the objects"), std::string::npos) << jobError(j);
+  j.hints = {9, 5};
+  EXPECT_NE(jobError(j).find("hints not ascending"), std::string::npos) << jobError(j);
+  j.hints = {5, 5};
+  EXPECT_NE(jobError(j).find("hints not ascending"), std::string::npos) << jobError(j);
+  j.hints = {1, 5, 9, 4000000000u};  // all of them
+  EXPECT_EQ(jobError(j), "");
+}
+
 TEST(Protocol, JobRejectsARegionOutsideItsFrame) {
   FrameJob j = sampleJob();
   j.region = {600, 0, 41, 10};  // one column past 640
@@ -127,7 +145,7 @@ TEST(Protocol, JobRejectsTruncationTrailingBytesAndABadFlag) {
   trailing.push_back(0);
   EXPECT_NE(errorOf(trailing, true), "");
   std::vector<uint8_t> flag = b;
-  flag.back() = 2;  // the flush byte ends the message
+  flag[flag.size() - 5] = 2;  // the flush byte, before the (empty) hint list's count
   EXPECT_NE(errorOf(flag, true).find("flush"), std::string::npos) << errorOf(flag, true);
 }
 

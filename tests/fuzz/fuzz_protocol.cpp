@@ -3,6 +3,7 @@
 // a Job, the scene's object count (its upper 7 bits; 127: 2^32); the rest is
 // the message. What decodes must encode back to the same bytes, and a
 // decoded Job must be one a client can index the scene with.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -23,6 +24,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       for (size_t i = 0; i < j.objects.size(); ++i)
         FUZZ_CHECK(j.objects[i] < objects && (i == 0 || j.objects[i - 1] < j.objects[i]));
       FUZZ_CHECK(dmmr::insideFrame(j.region, j.width, j.height));
+      for (size_t i = 0; i < j.hints.size(); ++i)
+        FUZZ_CHECK(std::binary_search(j.objects.begin(), j.objects.end(), j.hints[i]) &&
+                   (i == 0 || j.hints[i - 1] < j.hints[i]));
     } else {
       FUZZ_CHECK(dmmr::encodeSubFrames(dmmr::decodeSubFrames(bytes)) == bytes);
     }

@@ -178,6 +178,7 @@ int main(int argc, char** argv) {
                {0, 4, 9}};
   put("protocol", "job.bin", message(20 << 1, encodeJob(job)));
   job.flush = false;
+  job.hints = {4, 9};
   put("protocol", "job-noflush.bin", message(127 << 1, encodeJob(job)));
   SubFrame sub;
   sub.frame = 3;

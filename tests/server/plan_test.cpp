@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <vector>
 
 #include "camera.h"
@@ -196,6 +197,21 @@ TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
   uint64_t staleTotal = 0;
   for (const Region& r : stale.regions) staleTotal += r.weight;
   EXPECT_LE(staleTotal, 2 * FramePlanner::kHiddenWeight * scene.objects.size());
+}
+
+TEST(FramePlanner, HintsAreTheObjectsDrawnInTheLatestReportedFrames) {
+  Rng rng(36);
+  Scene scene = gridScene(rng, 4, 4);
+  FramePlanner planner(scene);
+  std::vector<uint32_t> all(scene.objects.size());
+  std::iota(all.begin(), all.end(), 0u);
+  EXPECT_TRUE(planner.drawnLately(all).empty());  // nothing reported yet
+  planner.reportDrawn(3, {1, 4});
+  planner.reportDrawn(4, {2});
+  EXPECT_EQ(planner.drawnLately(all), (std::vector<uint32_t>{1, 2, 4}));
+  EXPECT_EQ(planner.drawnLately({0, 2, 3}), (std::vector<uint32_t>{2}));  // of the list only
+  planner.reportDrawn(3 + FramePlanner::kHintFrames, {7});                // frame 3 is now too old
+  EXPECT_EQ(planner.drawnLately(all), (std::vector<uint32_t>{2, 7}));
 }
 
 }  // namespace
