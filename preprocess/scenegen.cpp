@@ -1653,7 +1653,7 @@ Walkthrough makeWalkthrough(const osg::BoundingBox& box, uint32_t frames, PathKi
       const double pitch = 10 * kPi / 180;
       target = eye + heading * std::cos(pitch) + Vec3d{0, 0, -std::sin(pitch)};
     } else if (kind == PathKind::Around) {
-      double phi = 2 * kPi * i / frames, r = 0.5 * std::hypot(dx, dy);
+      double phi = 2 * kPi * i / frames, r = 0.4 * std::hypot(dx, dy);
       if (!(r > 0)) r = radius;
       eye = c + Vec3d{std::cos(phi) * r, std::sin(phi) * r, 0.25 * dz};
       target = c;

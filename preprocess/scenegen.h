@@ -103,10 +103,10 @@ enum class PathKind {
   // A full circle around the box centre at 2.2 * half its diagonal, 20 degrees
   // above the horizon, always looking at the centre. For arbitrary models.
   Orbit,
-  // A full circle around the box centre close to the outside of the box:
-  // radius half the XY diagonal (it touches the box's vertical edges), at
-  // a quarter of the height above the centre, always looking at the centre.
-  // Near copies of `replicate` fill the view and hide the far ones.
+  // A full circle around the box centre, close: radius 0.8 of half the XY
+  // diagonal, a quarter of the height above the centre, always looking at
+  // the centre. Around a 2x2 `replicate` grid it passes each copy at about
+  // a fifth of its size (the copy fills the view) and between neighbours.
   Around,
 };
 
