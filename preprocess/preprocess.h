@@ -33,7 +33,7 @@ struct PreprocessOptions {
   // Meshes (a geode's merged geometry) of more triangles than this are split
   // into clusters of at most this many (preprocess/cluster.h), each its own
   // object, under one group per mesh; 0 keeps every mesh whole.
-  uint64_t cluster_triangles = 8192;
+  uint64_t cluster_triangles = 4096;
   // How geometry files store vertices and indices (formats.h); recorded in
   // the manifest. The default is exact; Quantized and QuantizedMeshopt are
   // lossy (docs/scene-format.md gives their error bounds).
