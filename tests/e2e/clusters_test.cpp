@@ -86,11 +86,10 @@ TEST_P(ClustersDistributed, FramesArePixelIdenticalToTheReference) {
   DenseScene& s = denseScene();
   std::string out = s.dir / ("frames" + std::to_string(GetParam()));
   int status = 0;
-  std::string log = test::runCapture("timeout 120 " + test::mpirun(GetParam() + 1) + " " +
-                                         test::tool("dmmr-render") + kView + " --scene " +
-                                         s.scene(1024) + " --walkthrough " + s.path +
-                                         " --out " + out,
-                                     &status);
+  std::string log = test::runCapture(
+      "timeout 120 " + test::mpirun(GetParam() + 1) + " " + test::tool("dmmr-render") + kView +
+          " --scene " + s.scene(1024) + " --walkthrough " + s.path + " --out " + out,
+      &status);
   ASSERT_EQ(status, 0) << log;
   expectIdentical(s.reference(1024), out);
 }
