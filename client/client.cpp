@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
 #include <cstdlib>
@@ -14,6 +15,7 @@
 #include <mutex>
 #include <thread>
 
+#include "cpu_time.h"
 #include "depth_pyramid.h"
 #include "draw.h"
 #include "error.h"
@@ -24,6 +26,7 @@
 #include "protocol.h"
 #include "queue.h"
 #include "scene.h"
+#include "stage_turns.h"
 
 namespace dmmr {
 
@@ -66,6 +69,21 @@ void injectFault(const char* stage, uint32_t frame) {
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
   if (std::strcmp(rest, ":foreign") == 0) throw int(frame);
   throw Error("fault injected by DMMR_INJECT_FAULT at frame " + std::to_string(at));
+}
+
+// Test and benchmark hook: DMMR_SLOW_CLIENT=RANK:FACTOR (FACTOR > 1) makes
+// client RANK's render stage take FACTOR times its CPU time on each job, by
+// spinning, as a CPU that much slower would (heterogeneous clients; with
+// LP_NUM_THREADS=0 the stage's CPU time is its whole work). Returns 1 for
+// every other client.
+double slowFactor(int rank) {
+  const char* spec = std::getenv("DMMR_SLOW_CLIENT");
+  if (!spec) return 1;
+  char* rest = nullptr;
+  long r = std::strtol(spec, &rest, 10);
+  if (r != rank || *rest != ':') return 1;
+  double f = std::strtod(rest + 1, nullptr);
+  return std::isfinite(f) && f > 1 ? f : 1;
 }
 
 void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheStats& after) {
@@ -566,6 +584,7 @@ class VisibilityStage {
     if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
       gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache);
       culler_ = std::make_unique<Culler>(scene, opts_, *gl_);
+      if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
     }
   }
 
@@ -586,10 +605,13 @@ class VisibilityStage {
       out.job = std::move(job);
       return out;
     }
+    StageTurns::Hold turn(turns_.get());
+    double cpu0 = threadCpuMs();
     gl_->meshes.nextFrame();
     GpuCacheStats before = gl_->meshes.stats();
     Decision d = culler_->decide(job);
     addGpuStats(out.stats, before, gl_->meshes.stats());
+    out.stats.vis_cpu_ms = threadCpuMs() - cpu0;
     out.culled = true;
     out.visible = std::move(d.visible);
     out.stats.prepare_ms = d.prepare_ms;
@@ -615,6 +637,7 @@ class VisibilityStage {
   StageControl& control_;
   std::unique_ptr<GlStage> gl_;
   std::unique_ptr<Culler> culler_;
+  std::unique_ptr<StageTurns> turns_;
 };
 
 class RenderStage {
@@ -630,11 +653,15 @@ class RenderStage {
     if (opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
+    if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
+    slow_ = slowFactor(opts.rank);
   }
 
   SubFrame run(const VisibleJob& v) {
     const FrameJob& job = v.job;
     injectFault("render", job.frame);
+    StageTurns::Hold turn(turns_.get());
+    double cpu0 = threadCpuMs();
     // Per job: under tiles each tile is a frame for eviction, on purpose
     // (docs/architecture.md, "Geometry cache").
     gl_.meshes.nextFrame();
@@ -677,6 +704,11 @@ class RenderStage {
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
+    if (slow_ > 1) {  // DMMR_SLOW_CLIENT: spin (slow_ - 1) times the work so far
+      double until = threadCpuMs() + (slow_ - 1) * (threadCpuMs() - cpu0);
+      while (threadCpuMs() < until) {
+      }
+    }
     addGpuStats(st, gpu_before, gl_.meshes.stats());
     // The host levels are shared by both stages; each sub-frame reports
     // their activity since the previous one.
@@ -708,6 +740,7 @@ class RenderStage {
     st.compress_ms = msSince(tc);
     st.bytes_raw = rgb_.size();
     st.bytes_sent = out.data.size();
+    st.render_cpu_ms = threadCpuMs() - cpu0;
     st.send_ms = last_send_ms_;
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
     std::string chosen = control_.finished(job.frame);
@@ -725,6 +758,8 @@ class RenderStage {
   GlStage gl_;
   StageControl& control_;
   std::unique_ptr<Culler> culler_;
+  std::unique_ptr<StageTurns> turns_;
+  double slow_ = 1;  // DMMR_SLOW_CLIENT
   HostCacheStats host_before_;
   int rank_;
   double last_send_ms_ = 0;

@@ -25,6 +25,9 @@ struct ClientOptions {
   Codec codec = Codec::LZ4;
   CacheOptions cache;
   int rank = 0;  // set by runClient, for log lines
+  // Benchmark mode: when set, every GL stage holds an exclusive lock on this
+  // file while it works on a job (stage_turns.h), so stages run one at a time.
+  std::string stage_turns;
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.

@@ -77,7 +77,7 @@ void putSubFrame(ByteWriter& w, const SubFrame& s) {
   w.u64(s.raw_size);
   const ClientStats& t = s.stats;
   for (double v : {t.prepare_ms, t.retrieve_ms, t.pass_ms, t.load_ms, t.render_ms, t.readback_ms,
-                   t.compress_ms, t.send_ms})
+                   t.compress_ms, t.send_ms, t.vis_cpu_ms, t.render_cpu_ms})
     w.f64(v);
   for (uint64_t v : {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw,
                      t.bytes_sent, t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes,
@@ -100,7 +100,7 @@ SubFrame getSubFrame(ByteReader& r) {
   if (s.raw_size != uint64_t(s.region.area()) * 3) r.fail("raw size does not match the region");
   ClientStats& t = s.stats;
   for (double* v : {&t.prepare_ms, &t.retrieve_ms, &t.pass_ms, &t.load_ms, &t.render_ms,
-                    &t.readback_ms, &t.compress_ms, &t.send_ms})
+                    &t.readback_ms, &t.compress_ms, &t.send_ms, &t.vis_cpu_ms, &t.render_cpu_ms})
     *v = r.f64("stats");
   for (uint64_t* v : {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw,
                       &t.bytes_sent, &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses,
@@ -153,7 +153,9 @@ void accumulate(ClientStats& a, const ClientStats& b) {
                       {&a.render_ms, b.render_ms},
                       {&a.readback_ms, b.readback_ms},
                       {&a.compress_ms, b.compress_ms},
-                      {&a.send_ms, b.send_ms}})
+                      {&a.send_ms, b.send_ms},
+                      {&a.vis_cpu_ms, b.vis_cpu_ms},
+                      {&a.render_cpu_ms, b.render_cpu_ms}})
     *x += y;
   for (auto [x, y] : {std::pair{&a.objects, b.objects},
                       {&a.occluders, b.occluders},

@@ -35,7 +35,13 @@ struct ClientStats {
   double render_ms = 0;    // drawing the visible list (through glFinish)
   double readback_ms = 0;  // reading the region's pixels
   double compress_ms = 0;
-  double send_ms = 0;    // MPI send of this client's previous sub-frame
+  double send_ms = 0;  // MPI send of this client's previous sub-frame
+  // CPU time of the stage threads on this job (CLOCK_THREAD_CPUTIME_ID):
+  // the visibility stage's culling, and the render stage's work from load to
+  // compression (fused culling included). With LP_NUM_THREADS=0 llvmpipe
+  // rasterises on these threads, so they are the stages' whole cost,
+  // whatever else runs on the machine.
+  double vis_cpu_ms = 0, render_cpu_ms = 0;
   uint64_t objects = 0;  // objects in the region's list from the server
   uint64_t occluders = 0, queried = 0, visible = 0;
   uint64_t triangles = 0;  // triangles drawn by the render stage

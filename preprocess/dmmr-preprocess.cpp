@@ -1,4 +1,5 @@
 // dmmr-preprocess INPUT... -o SCENE_DIR
+// An INPUT is a model file or a directory of them (read recursively).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
@@ -8,7 +9,9 @@
 int main(int argc, char** argv) {
   dmmr::PreprocessOptions o;
   CLI::App app{"dmmr-preprocess: split a model into a dmmr scene directory"};
-  app.add_option("inputs", o.inputs, "models OpenSceneGraph reads (OBJ, PLY, OSGB, ...)")
+  app.add_option("inputs", o.inputs,
+                 "models (OBJ, PLY, OSGB, ... through OpenSceneGraph; glTF/GLB, FBX, 3MF, OFF "
+                 "through assimp) or directories of them, read recursively")
       ->required();
   app.add_option("-o,--out", o.out, "scene directory to create (must not exist)")->required();
   app.add_option("--occluder-area-percentile", o.occluder_area_percentile,
@@ -40,6 +43,8 @@ int main(int argc, char** argv) {
           },
           "ENCODING"));
   app.add_flag("!--no-progress", o.progress, "do not print progress");
+  app.add_flag("--skip-unreadable", o.skip_unreadable,
+               "skip an input that cannot be read, with a warning naming it (default: error)");
   CLI11_PARSE(app, argc, argv);
   dmmr::parseEncoding(encoding, &o.encoding);  // checked above
   try {
@@ -55,18 +60,22 @@ int main(int argc, char** argv) {
                    "dmmr-preprocess: warning: dropped %llu degenerate triangles (corners that "
                    "coincide: they cover no pixel)\n",
                    (unsigned long long)s.degenerate_triangles);
+    if (s.skipped_inputs)
+      std::fprintf(stderr, "dmmr-preprocess: warning: skipped %llu unreadable inputs\n",
+                   (unsigned long long)s.skipped_inputs);
     if (s.skipped_drawables)
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: skipped %llu drawables without triangle "
                    "geometry\n",
                    (unsigned long long)s.skipped_drawables);
     std::printf(
-        "%s: %llu objects, %llu geometries, %llu textures, %llu occluders, %llu triangles "
+        "%s: %llu inputs, %llu objects, %llu geometries, %llu textures, %llu occluders, %llu "
+        "triangles "
         "(%llu unique), %.1f MB, %.2f s (%.2f M triangles/s)\n",
-        o.out.c_str(), (unsigned long long)s.objects, (unsigned long long)s.geometries,
-        (unsigned long long)s.textures, (unsigned long long)s.occluders,
-        (unsigned long long)s.triangles, (unsigned long long)s.unique_triangles,
-        double(s.bytes_written) / 1e6, s.seconds,
+        o.out.c_str(), (unsigned long long)s.inputs, (unsigned long long)s.objects,
+        (unsigned long long)s.geometries, (unsigned long long)s.textures,
+        (unsigned long long)s.occluders, (unsigned long long)s.triangles,
+        (unsigned long long)s.unique_triangles, double(s.bytes_written) / 1e6, s.seconds,
         s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
     if (o.encoding != dmmr::Encoding::Float32)
       std::printf("%s: geometry encoding %s\n", o.out.c_str(), dmmr::encodingName(o.encoding));

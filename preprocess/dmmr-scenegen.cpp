@@ -5,8 +5,13 @@
 //   dmmr-scenegen replicate --copies N (--input FILE | --of plant|monument ...)
 //                 [--spacing M] [--subdivide N] -o OUT.osgb
 // Every command also takes --walkthrough PATH (default: OUT with extension
-// .path), --frames N (default 120) and --path fly|orbit|around.
+// .path), --frames N (default 120) and --path fly|orbit|around. plant and
+// monument take --parts N: N scenes of unique geometry (seeds S..S+N-1, T/N
+// triangles each) on a grid, written one at a time to OUT-000.EXT ... (a
+// scene larger than memory, as many files; the walkthrough spans them all).
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -14,6 +19,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <osg/MatrixTransform>
 #include <osgDB/FileNameUtils>
 #include <osgDB/Registry>
 
@@ -27,7 +33,7 @@ namespace {
 
 struct Options {
   std::string output, walkthrough, input, of, path;
-  uint32_t frames = 120, copies = 0, subdivide = 1;
+  uint32_t frames = 120, copies = 0, parts = 0, subdivide = 1;
   double spacing = 0;
   uint64_t seed = 1, triangles = 1'000'000;
   uint32_t geodes = 0;
@@ -120,6 +126,41 @@ void writeSceneAtomic(osg::Node& node, const std::string& out) {
   }
 }
 
+std::string partName(const std::string& out, uint32_t i) {
+  char n[16];
+  std::snprintf(n, sizeof n, "-%03u.", i);
+  return osgDB::getNameLessExtension(out) + n + osgDB::getFileExtension(out);
+}
+
+// --parts: each part is generated, placed, written and released before the
+// next, so the generator holds one part at a time.
+void writeParts(const std::string& command, const Options& o, osg::BoundingBox* bounds,
+                sg::SceneStats* total) {
+  uint32_t cols = uint32_t(std::ceil(std::sqrt(double(o.parts))));
+  double spacing = 0;
+  for (uint32_t i = 0; i < o.parts; ++i) {
+    Options p = o;
+    p.seed = o.seed + i;
+    p.triangles = std::max<uint64_t>(1, o.triangles / o.parts);
+    osg::ref_ptr<osg::Node> part = generate(command, p);
+    osg::BoundingBox b = sg::sceneBounds(*part);
+    if (i == 0) spacing = 1.1 * std::max(b.xMax() - b.xMin(), b.yMax() - b.yMin());
+    double x = (double(i % cols) - (cols - 1) / 2.0) * spacing;
+    double y = (double(i / cols) - (cols - 1) / 2.0) * spacing;
+    osg::ref_ptr<osg::MatrixTransform> t =
+        new osg::MatrixTransform(osg::Matrixd::translate(x, y, 0));
+    t->addChild(part);
+    writeSceneAtomic(*t, partName(o.output, i));
+    bounds->expandBy(sg::sceneBounds(*t));
+    sg::SceneStats s = sg::sceneStats(*t);
+    total->geodes += s.geodes;
+    total->geodeInstances += s.geodeInstances;
+    total->geometries += s.geometries;
+    total->triangles += s.triangles;
+    total->instancedTriangles += s.instancedTriangles;
+  }
+}
+
 void run(const std::string& command, Options& o) {
   auto start = std::chrono::steady_clock::now();
   if (o.frames == 0) throw dmmr::Error("--frames must be at least 1");
@@ -130,6 +171,24 @@ void run(const std::string& command, Options& o) {
   checkOutput(o.walkthrough, false);
   bool orbit = false;
   osg::ref_ptr<osg::Node> scene;
+  if (o.parts > 0) {
+    if (command == "replicate") throw dmmr::Error("--parts is for plant and monument");
+    osg::BoundingBox bounds;
+    sg::SceneStats s;
+    writeParts(command, o, &bounds, &s);
+    dmmr::writeWalkthrough(
+        o.walkthrough,
+        sg::makeWalkthrough(bounds, o.frames,
+                            o.path == "orbit" ? sg::PathKind::Orbit : sg::PathKind::FlyThrough));
+    double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf(
+        "%s ... %s: %u parts, %llu geodes, %llu unique geometries, %llu triangles; walkthrough "
+        "%s (%u frames); %.1f s\n",
+        partName(o.output, 0).c_str(), partName(o.output, o.parts - 1).c_str(), o.parts,
+        (unsigned long long)s.geodeInstances, (unsigned long long)s.geometries,
+        (unsigned long long)s.triangles, o.walkthrough.c_str(), o.frames, secs);
+    return;
+  }
   if (command == "replicate") {
     if (o.copies == 0) throw dmmr::Error("--copies must be at least 1");
     if (o.input.empty() == o.of.empty())
@@ -178,6 +237,10 @@ int main(int argc, char** argv) {
     addGeneratorOptions(cmd, o);
   }
   rep->add_option("--copies", o.copies, "number of copies")->required();
+  for (CLI::App* cmd : {plant, monument})
+    cmd->add_option("--parts", o.parts,
+                    "write N files of unique geometry, OUT-000.EXT ..., one at a time")
+        ->check(kUnsigned);
   rep->add_option("--spacing", o.spacing, "grid spacing in metres (<= 0: automatic)");
   rep->add_option("--input", o.input, "model to replicate (any format OSG reads)");
   rep->add_option("--subdivide", o.subdivide,

@@ -23,6 +23,10 @@ std::string lowerExtension(const std::string& name) {
 const std::set<std::string> kModels = {"osg", "osgt", "osgb", "osgx", "ive", "obj",
                                        "ply", "stl",  "3ds",  "flt",  "lwo", "ac",
                                        "dxf", "x",    "dae",  "fbx",  "off", "3mf"};
+// Of those, the ones read through assimp (Debian's OSG has no plugin for
+// them), plus glTF, which only assimp reads. Collada stays with OSG's dae
+// plugin, OBJ, PLY and the OSG formats with OSG's own readers.
+const std::set<std::string> kAssimpModels = {"gltf", "glb", "fbx", "3mf", "off"};
 const std::set<std::string> kImages = {"png", "jpg", "jpeg", "bmp",  "tga", "tif", "tiff",
                                        "gif", "dds", "rgb",  "rgba", "sgi", "int", "inta",
                                        "bw",  "pnm", "ppm",  "pgm",  "pbm", "hdr", "ktx"};
@@ -43,6 +47,12 @@ bool allowedReference(const std::string& filename, ReadKind kind, std::string* w
                                    : "'." + ext + "' is not an allowed model or image format";
   }
   return ok;
+}
+
+ModelReader modelReaderFor(const std::string& filename) {
+  std::string ext = lowerExtension(filename);
+  if (kAssimpModels.count(ext)) return ModelReader::Assimp;
+  return kModels.count(ext) ? ModelReader::Osg : ModelReader::None;
 }
 
 class PluginGuard::Callback : public osgDB::ReadFileCallback {

@@ -25,6 +25,12 @@ enum class ReadKind { Node, Image, Object, Other };
 // Pure: looks at the name only.
 bool allowedReference(const std::string& filename, ReadKind kind, std::string* why);
 
+// Which library reads an input model, by its extension: assimp for the
+// formats OSG 3.6 has no plugin for (glTF 2.0, FBX, 3MF, OFF), OSG for the
+// rest of the allow-list; None for anything else (images, buffers, text).
+enum class ModelReader { None, Osg, Assimp };
+ModelReader modelReaderFor(const std::string& filename);
+
 class PluginGuard {
  public:
   PluginGuard();   // installs the registry's read callback

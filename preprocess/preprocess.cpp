@@ -22,6 +22,7 @@
 
 #include <meshoptimizer.h>
 
+#include "assimp_reader.h"
 #include "atomic_file.h"
 #include "cluster.h"
 #include "error.h"
@@ -169,6 +170,17 @@ class SceneWriter {
 
   void traverse(const osg::Node* node, const Mat4d& world, InheritedState state, uint32_t parent);
   void finish(PreprocessStats* stats);
+  // Inputs are traversed one at a time under one root group, so every
+  // object has a skeleton path; each input's graph is released after its
+  // traversal, and a later one may reuse its addresses: endInput forgets
+  // the pointer-keyed maps, which hold no per-triangle data.
+  uint32_t beginRoot() { return addNode(NodeKind::Group, kNone, kNone, "dmmr-root"); }
+  void endInput(const std::string& file) {
+    manifest_.inputs.push_back(fs::absolute(file).string());
+    geometry_index_.clear();
+    texture_index_.clear();
+  }
+  void endRoot(uint32_t root) { skeleton_[root].end = uint32_t(skeleton_.size()); }
 
  private:
   uint32_t addNode(NodeKind kind, uint32_t parent, uint32_t object, const std::string& name);
@@ -572,7 +584,6 @@ void SceneWriter::finish(PreprocessStats* stats) {
   manifest_.unique_triangles = stats_.unique_triangles;
   manifest_.bounds = scene_box_;
   manifest_.encoding = opts_.encoding;
-  for (const auto& in : opts_.inputs) manifest_.inputs.push_back(fs::absolute(in).string());
   writeFileAtomic(tmp_ + "/manifest.json", encodeManifest(manifest_));
   stats_.objects = objects_.size();
   stats_.geometries = geometries_.size();
@@ -581,9 +592,48 @@ void SceneWriter::finish(PreprocessStats* stats) {
   *stats = stats_;
 }
 
+// Inputs as files: a directory stands for every model file (modelReaderFor)
+// in it and its subdirectories, sorted by path so the scene does not depend
+// on the order the file system lists them; hidden entries are skipped.
+std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
+  std::vector<std::string> files;
+  for (const auto& in : inputs) {
+    std::error_code ec;
+    if (!fs::exists(in, ec)) throw Error(fileError(in, "no such file"));
+    if (!fs::is_directory(in, ec)) {
+      files.push_back(in);
+      continue;
+    }
+    std::vector<std::string> found;
+    try {
+      for (auto it = fs::recursive_directory_iterator(in); it != fs::recursive_directory_iterator();
+           ++it) {
+        std::string name = it->path().filename().string();
+        if (name.empty() || name[0] == '.') {
+          if (it->is_directory()) it.disable_recursion_pending();
+          continue;
+        }
+        if (it->is_regular_file() && modelReaderFor(name) != ModelReader::None)
+          found.push_back(it->path().string());
+      }
+    } catch (const fs::filesystem_error& e) {
+      throw Error(fileError(e.path1().empty() ? in : e.path1().string(),
+                            "cannot list directory: " + e.code().message()));
+    }
+    if (found.empty())
+      throw Error(fileError(in,
+                            "directory holds no model file (OBJ, PLY, OSGB, glTF, FBX, ...; "
+                            "see docs/scene-format.md)"));
+    std::sort(found.begin(), found.end());
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  return files;
+}
+
 osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (!fs::exists(path)) throw Error(fileError(path, "no such file"));
   if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
+  if (modelReaderFor(path) == ModelReader::Assimp) return readWithAssimp(path);
   osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
   if (!node)
     throw Error(fileError(path,
@@ -624,23 +674,34 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
   if (fs::exists(out))
     throw Error(fileError(out.string(), "output already exists; remove it or choose another"));
   auto t0 = Clock::now();  // reading the models counts toward throughput
-  std::vector<osg::ref_ptr<osg::Node>> models;
-  {
-    PluginGuard guard;  // models from strangers load only allowed formats
-    for (const auto& in : opts.inputs) models.push_back(readModel(in));
-  }
+  std::vector<std::string> files = expandInputs(opts.inputs);
 
   fs::path tmp = out;
   tmp += ".partial-" + std::to_string(::getpid());
   fs::remove_all(tmp);
   PreprocessStats stats;
+  uint64_t skipped = 0;
   try {
     SceneWriter w(opts, tmp.string());
-    // One root group over all inputs, so every object has a skeleton path.
-    osg::ref_ptr<osg::Group> root = new osg::Group;
-    root->setName("dmmr-root");
-    for (auto& m : models) root->addChild(m);
-    w.traverse(root.get(), Mat4d::identity(), {}, kNone);
+    PluginGuard guard;  // models from strangers load only allowed formats
+    // One input in memory at a time: read, traverse, release. Peak memory
+    // is the largest input plus the writer's per-object metadata.
+    uint32_t root = w.beginRoot();
+    for (const auto& file : files) {
+      osg::ref_ptr<osg::Node> model;
+      try {
+        model = readModel(file);
+      } catch (const Error& e) {
+        if (!opts.skip_unreadable) throw;
+        std::fprintf(stderr, "dmmr-preprocess: warning: skipped %s\n", e.what());
+        ++skipped;
+        continue;
+      }
+      w.traverse(model.get(), Mat4d::identity(), {}, root);
+      model = nullptr;
+      w.endInput(file);
+    }
+    w.endRoot(root);
     w.finish(&stats);
   } catch (...) {
     std::error_code ec;
@@ -654,6 +715,8 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
     throw Error(fileError(out.string(), "cannot move the finished scene into place"));
   }
   stats.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  stats.inputs = files.size() - skipped;
+  stats.skipped_inputs = skipped;
   return stats;
 }
 

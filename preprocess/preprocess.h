@@ -1,5 +1,5 @@
-// dmmr-preprocess: turns any model OpenSceneGraph reads into a dmmr scene
-// directory (see common/formats.h).
+// dmmr-preprocess: turns any model OpenSceneGraph or assimp reads into a
+// dmmr scene directory (see common/formats.h).
 #pragma once
 
 #include <cstdint>
@@ -15,9 +15,15 @@ class Node;
 namespace dmmr {
 
 struct PreprocessOptions {
+  // Model files, or directories standing for every model file in them and
+  // below (sorted by path). Read one at a time; see docs/scene-format.md.
   std::vector<std::string> inputs;
   std::string out;  // must not exist; written to a temporary sibling, then renamed
   bool progress = true;
+  // An input that cannot be read is an error, unless this is set: then it
+  // is skipped with a warning naming it (for a directory with a few broken
+  // files among many).
+  bool skip_unreadable = false;
   // Potential occluders are big and cheap: the largest face of an object's
   // world box is in the top (100 - area_percentile)% of all objects, and it
   // has at most max_triangles triangles.
@@ -50,6 +56,7 @@ struct PreprocessStats {
   uint64_t split_meshes = 0;                       // meshes split into clusters
   uint64_t lod_geometries = 0, lod_triangles = 0;  // levels of detail stored
   uint64_t bytes_written = 0;
+  uint64_t inputs = 0, skipped_inputs = 0;  // model files read, and skipped as unreadable
   double seconds = 0;
 };
 

@@ -9,6 +9,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   zlib1g-dev liblz4-dev libpng-dev
   libmeshoptimizer-dev libcli11-dev nlohmann-json3-dev
+  libassimp-dev  # glTF, FBX, 3MF, OFF inputs
   googletest libgtest-dev
   clang libclang-rt-14-dev
   libasan8 libubsan1 libtsan2  # gcc's sanitizer runtimes (CMakePresets.json)

@@ -1,5 +1,7 @@
 #include "divide.h"
 
+#include "error.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -164,8 +166,11 @@ struct Split {
 // one axis. Weights of spans starting before each line (exclusive prefix
 // sums) and ending after it (suffix sums) come from histograms over the
 // rectangle's pixels, so one split costs O(items + pixels).
+// `sl` and `sr` are the two sides' shares (their clients' summed speeds;
+// client counts when speeds are equal); `pixel` the weight per pixel of a
+// side, `across` the rectangle's extent across the split.
 Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int origin, int size,
-                int first, int last, int nl, int nr) {
+                int first, int last, double sl, double sr, double pixel, int across) {
   std::vector<double> startsAt(size_t(size) + 1, 0.0), endsAt(size_t(size) + 1, 0.0);
   double total = 0;
   for (const Footprint* f : items) {
@@ -175,9 +180,12 @@ Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int o
     endsAt[size_t(std::clamp(s.hi - origin, 0, size))] += w;
     total += w;
   }
-  const int nd = nl + nr;
-  const double lt = total * nl / nd, rt = total * nr / nd;
-  const double geometric = origin + double(size) * nl / nd;
+  const double line = pixel * across;  // a side's weight per pixel line
+  const double objects = total;
+  total += line * size;
+  const double sd = sl + sr;
+  const double lt = total * sl / sd, rt = total * sr / sd;
+  const double geometric = origin + double(size) * sl / sd;
   // left(at) = weight of spans with lo < at; right(at) = spans with hi > at
   // = total - spans with hi <= at.
   double left = 0, endedUpTo = 0;
@@ -190,12 +198,11 @@ Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int o
   for (int at = first; at <= last; ++at) {
     size_t k = size_t(at - origin);
     endedUpTo += endsAt[k];
-    double right = total - endedUpTo;
-    // For uneven client counts the per-client term alone would reward
-    // duplicating a heavy straddler into both sides; charge the duplicate.
-    double cost = std::fabs(left - lt) + std::fabs(right - rt) +
-                  std::min(nl, nr) * std::fabs(left / nl - right / nr) +
-                  (nl != nr ? left + right - total : 0.0);
+    double l = left + line * (at - origin), r = objects - endedUpTo + line * (origin + size - at);
+    // For uneven shares the per-client term alone would reward duplicating a
+    // heavy straddler into both sides; charge the duplicate.
+    double cost = std::fabs(l - lt) + std::fabs(r - rt) +
+                  std::min(sl, sr) * std::fabs(l / sl - r / sr) + (sl != sr ? l + r - total : 0.0);
     double dist = std::fabs(at - geometric);
     double eps = 1e-9 * total;
     if (cost < bestCost - eps || (cost <= bestCost + eps && dist < bestDist)) {
@@ -208,8 +215,9 @@ Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int o
   return best;
 }
 
+// Divides `rect` among clients [first_client, first_client + clients).
 void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical, int clients,
-            std::vector<Region>* out) {
+            int first_client, const DivisionCosts& costs, std::vector<Region>* out) {
   if (clients == 1) {
     Region r;
     r.rect = rect;
@@ -228,7 +236,7 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
   const int origin = vertical ? rect.x : rect.y;
   const int nl = clients / 2, nr = clients - nl;
   if (size < 2) {  // a single pixel (or an empty rectangle): the rest get nothing
-    divide(items, rect, vertical, 1, out);
+    divide(items, rect, vertical, 1, first_client, costs, out);
     for (int i = 1; i < clients; ++i)
       out->push_back(Region{Rect{rect.x1(), rect.y1(), 0, 0}, {}, 0});
     return;
@@ -239,7 +247,18 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
   int first = origin + std::max(1, minLeft), last = origin + size - std::max(1, minRight);
   if (first > last)
     first = last = origin + std::clamp(int(double(size) * nl / clients), 1, size - 1);
-  Split s = bestSplit(items, vertical, origin, size, first, last, nl, nr);
+  double sl = nl, sr = nr;
+  if (!costs.speeds.empty()) {
+    auto sum = [&](int from, int n) {
+      double s = 0;
+      for (int i = from; i < from + n; ++i) s += costs.speeds[size_t(i)];
+      return s;
+    };
+    sl = sum(first_client, nl);
+    sr = sum(first_client + nl, nr);
+  }
+  Split s =
+      bestSplit(items, vertical, origin, size, first, last, sl, sr, costs.pixel_weight, across);
 
   // Branch-free partition: random footprints make the branches unpredictable.
   std::vector<const Footprint*> left(items.size()), right(items.size());
@@ -263,22 +282,30 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
     rr.y = s.at;
     rr.h = rect.y1() - s.at;
   }
-  divide(left, lr, !vertical, nl, out);
-  divide(right, rr, !vertical, nr, out);
+  divide(left, lr, !vertical, nl, first_client, costs, out);
+  divide(right, rr, !vertical, nr, first_client + nl, costs, out);
 }
 
 }  // namespace
 
 std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients) {
+  return divideFrame(items, frame, clients, DivisionCosts{});
+}
+
+std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients,
+                                const DivisionCosts& costs) {
   std::vector<Region> out;
   if (clients <= 0) return out;
+  DMMR_CHECK(costs.speeds.empty() || costs.speeds.size() == size_t(clients));
+  for (double s : costs.speeds) DMMR_CHECK(std::isfinite(s) && s > 0);
+  DMMR_CHECK(std::isfinite(costs.pixel_weight) && costs.pixel_weight >= 0);
   std::vector<const Footprint*> inside;
   inside.reserve(items.size());
   for (const Footprint& f : items)
     if (f.x0 < f.x1 && f.y0 < f.y1 &&  // a footprint with no pixels touches no region
         f.x0 < frame.x1() && f.x1 > frame.x && f.y0 < frame.y1() && f.y1 > frame.y)
       inside.push_back(&f);
-  divide(inside, frame, frame.w >= frame.h, clients, &out);
+  divide(inside, frame, frame.w >= frame.h, clients, 0, costs, &out);
   return out;
 }
 

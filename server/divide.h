@@ -70,4 +70,22 @@ std::ostream& operator<<(std::ostream& os, const Region& r);
 // clients get empty rectangles and no objects.
 std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients);
 
+// What the division balances besides the objects' weights.
+struct DivisionCosts {
+  // Weight of each pixel of a region (work that grows with its area: clears,
+  // readbacks, compression, the depth pyramid, fill the objects' weights miss),
+  // in the objects' weight units. 0: objects alone.
+  double pixel_weight = 0;
+  // Relative speed of each client (the regions come back in client order):
+  // a side of a split is given a share of the weight in proportion to the sum
+  // of its clients' speeds. Empty: all equal. Each must be finite and > 0.
+  std::vector<double> speeds;
+  friend bool operator==(const DivisionCosts&, const DivisionCosts&) = default;
+};
+
+// The same, balancing `costs` too. With pixel_weight 0 and equal speeds it
+// returns exactly what the overload above does.
+std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients,
+                                const DivisionCosts& costs);
+
 }  // namespace dmmr

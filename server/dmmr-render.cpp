@@ -53,8 +53,10 @@ int main(int argc, char** argv) {
                  "(large: never)");
   std::string weights = "visible";
   app.add_option("--weights", weights,
-                 "division weights: visible (drawn lately) or frustum (all triangles)")
-      ->check(CLI::IsMember({"visible", "frustum"}));
+                 "division weights: visible (triangles drawn lately), fitted (a cost model and "
+                 "each client's speed fitted to the clients' measured times) or frustum (all "
+                 "triangles)")
+      ->check(CLI::IsMember({"visible", "fitted", "frustum"}));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')
@@ -86,6 +88,10 @@ int main(int argc, char** argv) {
   app.add_option("--tiles-in-flight", s.tile_window,
                  "tiles-dynamic: tiles given to a client before it returns one")
       ->check(CLI::Range(1, 4));
+  app.add_option("--stage-turns", c.stage_turns,
+                 "benchmark mode, one machine: the GL stages of every client take turns, "
+                 "holding a lock on this file while they work on a job, so that each stage's "
+                 "time is its own (docs/benchmarks.md, per-client cost)");
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -119,7 +125,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
     return 1;
   }
-  s.visible_weights = weights == "visible";
+  s.visible_weights = weights == "visible" || weights == "fitted";
+  s.fitted_weights = weights == "fitted";
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");

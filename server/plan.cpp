@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace dmmr {
 
@@ -26,21 +27,61 @@ void FramePlanner::reportDrawn(uint32_t frame, const std::vector<uint32_t>& obje
   feedback_.store(true, std::memory_order_relaxed);
 }
 
-uint64_t FramePlanner::weightOf(uint32_t o) const {
+void FramePlanner::reportCosts(const std::vector<CostSample>& samples) {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  cost_frames_.push_back(samples);
+  if (cost_frames_.size() > kCostFrames) cost_frames_.erase(cost_frames_.begin());
+  std::vector<CostSample> all;
+  int clients = 0;
+  for (const auto& f : cost_frames_)
+    for (const CostSample& s : f) {
+      all.push_back(s);
+      clients = std::max(clients, s.client + 1);
+    }
+  std::vector<double> speeds;
+  CostModel m = fitCostsAndSpeeds(all, clients, &speeds);
+  if (!m.fitted) return;  // keep the last good fit (or none)
+  model_ = m;
+  speeds_ = std::move(speeds);
+}
+
+CostModel FramePlanner::costModel() const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  return model_;
+}
+
+std::vector<double> FramePlanner::speeds() const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  return speeds_;
+}
+
+namespace {
+// Fitted weights are in units of 1 ns of a client's time.
+constexpr double kUnitsPerMs = 1e6;
+uint64_t units(double ms) {
+  return uint64_t(std::max(1.0, std::round(ms * kUnitsPerMs)));
+}
+}  // namespace
+
+uint64_t FramePlanner::weightOf(uint32_t o, const CostModel& model) const {
   uint64_t tris = boxes_[o].weight;
   if (!feedback_.load(std::memory_order_relaxed)) return tris;
   uint32_t seen = drawn_in_[o].load(std::memory_order_relaxed);  // frame + 1, or 0
   bool recent = seen != 0 && seen + kSeenFrames > frame_;
+  if (model.fitted)
+    return units(model.per_tested +
+                 (recent ? model.per_drawn + model.per_triangle * double(tris) : 0.0));
   return recent ? tris : std::min(tris, kHiddenWeight);
 }
 
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
                                                 const Camera& camera, int width, int height) const {
   FootprintProjector project(camera, width, height);
+  CostModel model = costModel();
   return projectInSlices(visible.size(), footprintThreads(visible.size()),
                          [&](size_t k, Footprint* f) {
                            uint32_t o = visible[k];
-                           return project(boxes_[o].box, weightOf(o), o, f);
+                           return project(boxes_[o].box, weightOf(o, model), o, f);
                          });
 }
 
@@ -73,7 +114,15 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   auto t1 = Clock::now();
   std::vector<Footprint> items = footprints(visible, camera, width, height);
   auto tp = Clock::now();
-  plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients);
+  DivisionCosts costs;
+  {
+    std::lock_guard<std::mutex> lock(cost_mu_);
+    if (model_.fitted) {
+      costs.pixel_weight = model_.per_pixel * kUnitsPerMs;
+      if (speeds_.size() == size_t(clients)) costs.speeds = speeds_;
+    }
+  }
+  plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients, costs);
   auto t2 = Clock::now();
   plan.project_ms = msBetween(t1, tp);
   plan.cull_ms = msBetween(t0, t1);

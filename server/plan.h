@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <vector>
 
+#include "cost_model.h"
 #include "cull.h"
 #include "divide.h"
 #include "scene.h"
@@ -85,6 +87,17 @@ class FramePlanner {
   static constexpr uint32_t kSeenFrames = 8;
   static constexpr uint64_t kHiddenWeight = 1;
 
+  // Fitted weights (--weights fitted): each finished frame's per-client work
+  // and time; the planner keeps the last kCostFrames frames' samples, fits
+  // the cost model and the clients' speeds to them (cost_model.h), and from
+  // then on weighs objects and pixels in fitted nanoseconds and gives each
+  // client a share in proportion to its speed. Thread-safe, like reportDrawn.
+  void reportCosts(const std::vector<CostSample>& samples);
+  static constexpr size_t kCostFrames = 24;
+  // The model and speeds the next plan uses (for logs and tests).
+  CostModel costModel() const;
+  std::vector<double> speeds() const;
+
  private:
   // Footprints of the `visible` objects, in the same order (those covering no
   // pixel left out); computed on up to 8 threads for large lists.
@@ -94,7 +107,7 @@ class FramePlanner {
     Box3d box;
     uint64_t weight;
   };
-  uint64_t weightOf(uint32_t object) const;
+  uint64_t weightOf(uint32_t object, const CostModel& model) const;
   // Frustum culling: the objects in view, ascending; fills the counts.
   std::vector<uint32_t> cull(const Camera& camera, uint64_t* objects, uint64_t* triangles) const;
   const Scene& scene_;
@@ -104,6 +117,10 @@ class FramePlanner {
   std::unique_ptr<std::atomic<uint32_t>[]> drawn_in_;
   std::atomic<bool> feedback_{false};
   uint32_t frame_ = 0;
+  mutable std::mutex cost_mu_;                        // guards the fields below
+  std::vector<std::vector<CostSample>> cost_frames_;  // the last kCostFrames frames' samples
+  CostModel model_;
+  std::vector<double> speeds_;
 };
 
 // One-off convenience: builds a planner and plans one frame.

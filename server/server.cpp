@@ -58,6 +58,7 @@ struct FrameRecord {
   std::vector<uint64_t> region_objects;  // as planned, per client
   Image image;                           // assembled RGBA, top row first
   std::vector<ClientStats> clients;      // per client, summed over its sub-frames
+  std::vector<uint64_t> pixels;          // per client: pixels of its sub-frames
   std::vector<int> owed;                 // per client: sub-frames given and not yet back
   int expected = 0;                      // sub-frames that make up the frame
   int received = 0;
@@ -70,10 +71,11 @@ std::string statsHeader(int clients) {
       "objects_in_frustum,triangles_in_frustum";
   for (int k = 1; k <= clients; ++k)
     for (const char* c :
-         {"objects",     "occluders",  "queried",    "visible",   "triangles",    "prepare_ms",
-          "retrieve_ms", "pass_ms",    "load_ms",    "render_ms", "readback_ms",  "compress_ms",
-          "send_ms",     "bytes_raw",  "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
-          "ram_misses",  "disk_bytes", "uncached",   "skipped",   "gpu_resident", "ram_resident"})
+         {"objects",     "occluders",    "queried",    "visible",   "triangles",    "prepare_ms",
+          "retrieve_ms", "pass_ms",      "load_ms",    "render_ms", "readback_ms",  "compress_ms",
+          "send_ms",     "bytes_raw",    "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
+          "ram_misses",  "disk_bytes",   "uncached",   "skipped",   "gpu_resident", "ram_resident",
+          "vis_cpu_ms",  "render_cpu_ms"})
       h += ",c" + std::to_string(k) + "_" + c;
   return h + "\n";
 }
@@ -95,6 +97,7 @@ class Assembler {
   void begin(uint32_t frame, FrameRecord rec, std::vector<int> owed, int expected) {
     rec.image = Image::blank(opts_.view.width, opts_.view.height);
     rec.clients.resize(size_t(clients_));
+    rec.pixels.resize(size_t(clients_));
     rec.owed = std::move(owed);
     rec.expected = expected;
     std::lock_guard<std::mutex> lock(mu_);
@@ -273,6 +276,7 @@ class Assembler {
     std::vector<uint8_t> rgb = decompress(sf.codec, sf.data.data(), sf.data.size(), sf.raw_size);
     placeRgbRegion(rec->image, sf.region, rgb);
     accumulate(rec->clients[size_t(rank - 1)], sf.stats);
+    rec->pixels[size_t(rank - 1)] += uint64_t(sf.region.area());
     if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     bool complete;
@@ -295,6 +299,7 @@ class Assembler {
       auto node = pending_.extract(frame);
       rec = std::move(node.mapped());
     }
+    if (planner_ && opts_.fitted_weights) planner_->reportCosts(costSamples(rec));
     auto tw = Clock::now();
     writePng(opts_.out + "/" + frameFileName(frame), rec.image);
     auto done = Clock::now();
@@ -310,7 +315,8 @@ class Assembler {
           << c.load_ms << "," << c.render_ms << "," << c.readback_ms << "," << c.compress_ms << ","
           << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent << "," << c.gpu_hits << ","
           << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
-          << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident;
+          << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
+          << c.vis_cpu_ms << "," << c.render_cpu_ms;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
     last_done_ = done;
     if (opts_.progress) std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
@@ -318,6 +324,31 @@ class Assembler {
     std::lock_guard<std::mutex> lock(mu_);
     ++assembled_;
     cv_.notify_all();
+  }
+
+  // Each client's work and time on a frame, for fitted weights. The time is
+  // the stage threads' CPU time when llvmpipe rasterises on them
+  // (LP_NUM_THREADS=0, which mpirun -x gives every rank alike): free of
+  // waiting for a core; otherwise the stages' wall time, which on a cluster
+  // (one machine per client) is the client's cost.
+  std::vector<CostSample> costSamples(const FrameRecord& rec) const {
+    const char* lp = std::getenv("LP_NUM_THREADS");
+    bool cpu = lp && std::strcmp(lp, "0") == 0;
+    std::vector<CostSample> out;
+    for (size_t k = 0; k < rec.clients.size(); ++k) {
+      const ClientStats& c = rec.clients[k];
+      CostSample s;
+      s.client = int(k);
+      s.drawn = double(c.visible);
+      s.triangles = double(c.triangles);
+      s.tested = double(c.queried);
+      s.pixels = double(rec.pixels[k]);
+      s.ms = cpu ? c.vis_cpu_ms + c.render_cpu_ms
+                 : c.prepare_ms + c.retrieve_ms + c.load_ms + c.render_ms + c.readback_ms +
+                       c.compress_ms;
+      out.push_back(s);
+    }
+    return out;
   }
 
   void fail(const std::string& why) {

@@ -24,6 +24,9 @@ struct ServerOptions {
   // Weigh objects for the division by what the clients drew lately (see
   // FramePlanner::reportDrawn), rather than by all triangles in the frustum.
   bool visible_weights = true;
+  // Fit a cost model and each client's speed to what the clients report, and
+  // divide by fitted time (FramePlanner::reportCosts); needs visible_weights.
+  bool fitted_weights = false;
   // A client that sends nothing for this long while it owes a sub-frame has
   // died or hangs: the server names it and aborts the job (frames already
   // assembled stay on disk). Generous by default: a first frame that loads

@@ -55,24 +55,51 @@ def clients_of(row):
 WORK_VIS = ["prepare_ms", "retrieve_ms"]
 WORK_RENDER = ["load_ms", "render_ms", "readback_ms", "compress_ms"]
 LINK_GBPS = 1.0  # nominal network for the derived transfer time (set by the suite's run.link_gbps)
+# Which per-client cost the derived times use (set by dmmr-bench --cost):
+#   wall:  the stages' wall times (on a shared machine: waiting for a core included);
+#   cpu:   the stage threads' CPU time (vis_cpu_ms + render_cpu_ms; the runs set
+#          LP_NUM_THREADS=0 so llvmpipe rasterises on those threads);
+#   turns: the stages' wall times, taken with dmmr-render --stage-turns (one GL
+#          stage at a time on the machine).
+COST = "wall"
+COST_DEFINITIONS = {
+    "wall": "stage wall times (prepare+retrieve+load+render+readback+compress), which include "
+            "waiting for a core when processes share the machine",
+    "cpu": "stage threads' CPU time (vis_cpu_ms + render_cpu_ms, CLOCK_THREAD_CPUTIME_ID), "
+           "dmmr-render run with LP_NUM_THREADS=0 so that llvmpipe rasterises on the stage threads",
+    "turns": "stage wall times (prepare+retrieve+load+render+readback+compress) with "
+             "dmmr-render --stage-turns: one GL stage at a time on the machine",
+}
 
 
 def transfer_ms(nbytes):
     return nbytes * 8 / (LINK_GBPS * 1e9) * 1e3
 
 
-def client_work(r, k):
+def client_work(r, k, cost=None):
+    """Client k's own work in the frame, by `cost` (default COST)."""
+    if (cost or COST) == "cpu":
+        return num(r, f"c{k}_vis_cpu_ms") + num(r, f"c{k}_render_cpu_ms")
     return sum(num(r, f"c{k}_{s}") for s in WORK_VIS + WORK_RENDER)
 
 
-def derived_frame(r, n):
+def stage_work(r, k, stage, cost=None):
+    """Client k's visibility ("vis") or render ("render") stage work, by `cost`."""
+    if (cost or COST) == "cpu":
+        return num(r, f"c{k}_{stage}_cpu_ms")
+    return sum(num(r, f"c{k}_{s}") for s in (WORK_VIS if stage == "vis" else WORK_RENDER))
+
+
+def derived_frame(r, n, cost=None):
     """The frame time a cluster with one machine per client would see, from this
-    frame's measured stage times: server cull and division, then the slowest
-    client's own work done serially (prepare, retrieve, load, render, read back,
-    compress) plus its sub-frame's transfer at LINK_GBPS; no overlap between
-    frames assumed. Waiting (pass_ms, send_ms) is left out."""
+    frame's measured stage costs (by `cost`, default COST): server cull and
+    division, then the slowest client's own work done serially (prepare,
+    retrieve, load, render, read back, compress) plus its sub-frame's transfer
+    at LINK_GBPS; no overlap between frames assumed. Waiting (pass_ms, send_ms)
+    is left out."""
     server = num(r, "cull_ms") + num(r, "divide_ms")
-    slowest = max(client_work(r, k) + transfer_ms(num(r, f"c{k}_bytes_sent")) for k in range(1, n + 1))
+    slowest = max(client_work(r, k, cost) + transfer_ms(num(r, f"c{k}_bytes_sent"))
+                  for k in range(1, n + 1))
     return server + slowest
 
 
@@ -80,8 +107,8 @@ def derived_pipelined(r, n):
     """Same, with the stages overlapped as the pipeline does on a real cluster
     (two contexts per client): the slowest of server, visibility and render stage."""
     server = num(r, "cull_ms") + num(r, "divide_ms")
-    vis = max(sum(num(r, f"c{k}_{s}") for s in WORK_VIS) for k in range(1, n + 1))
-    ren = max(sum(num(r, f"c{k}_{s}") for s in WORK_RENDER) + transfer_ms(num(r, f"c{k}_bytes_sent"))
+    vis = max(stage_work(r, k, "vis") for k in range(1, n + 1))
+    ren = max(stage_work(r, k, "render") + transfer_ms(num(r, f"c{k}_bytes_sent"))
               for k in range(1, n + 1))
     return max(server, vis, ren)
 
@@ -158,6 +185,15 @@ def render_stats(path, clients):
         "fps_max": 1000.0 / min(ft) if ft and min(ft) > 0 else None,
         "derived_frame_ms_mean": mean(der), "derived_frame_ms_median": median(der),
         "derived_pipelined_ms_mean": mean(derp),
+        "derived_cost": COST,
+        # both costs where the CSV has CPU times, to check one against the other
+        "derived_wall_frame_ms_mean": mean(derived_frame(r, n, "wall") for r in s),
+        "derived_cpu_frame_ms_mean": (mean(derived_frame(r, n, "cpu") for r in s)
+                                      if "c1_render_cpu_ms" in rows[0] else None),
+        # max over clients / mean over clients of each frame's work, median over frames
+        "client_max_over_mean_median": median(
+            max(w) / mean(w) if mean(w) > 0 else 1.0
+            for w in ([client_work(r, k) for k in range(1, n + 1)] for r in s)),
         "server": {k: mean(num(r, k) for r in s) for k in SERVER_STAGES},
         "objects_in_frustum_mean": mean(num(r, "objects_in_frustum") for r in s),
         "triangles_in_frustum_mean": mean(num(r, "triangles_in_frustum") for r in s),
@@ -174,6 +210,9 @@ def render_stats(path, clients):
         c = {st_: mean(num(r, f"c{k}_{st_}") for r in s) for st_ in CLIENT_STAGES}
         c.update({f"{cnt}_mean": mean(num(r, f"c{k}_{cnt}") for r in s) for cnt in CLIENT_COUNTS})
         c["work_ms"] = sum(c[x] for x in WORK_VIS + WORK_RENDER)
+        c["vis_cpu_ms"] = mean(num(r, f"c{k}_vis_cpu_ms") for r in s)
+        c["render_cpu_ms"] = mean(num(r, f"c{k}_render_cpu_ms") for r in s)
+        c["cost_ms"] = mean(client_work(r, k) for r in s)
         c["transfer_ms"] = transfer_ms(c["bytes_sent_mean"])
         hits = {x: sum(num(r, f"c{k}_{x}") for r in s) for x in ("gpu_hits", "gpu_misses", "ram_hits", "ram_misses")}
         c["gpu_hit_rate"] = rate(hits["gpu_hits"], hits["gpu_misses"])

@@ -59,6 +59,10 @@ def main(argv=None):
     ap.add_argument("--render-option", action="append", default=[], metavar="OPT",
                     help="an extra dmmr-render option for the plain runs (not the threshold sweep), "
                          "repeatable, e.g. --render-option=--stages --render-option=fused")
+    ap.add_argument("--cost", choices=["wall", "cpu", "turns"],
+                    help="what the derived cluster times are built from: the stages' wall times (wall), "
+                         "their threads' CPU time with LP_NUM_THREADS=0 (cpu), or wall times with the GL "
+                         "stages taking turns (turns); default: the suite's run.cost, else wall")
     a = ap.parse_args(argv)
 
     suite_path = find_suite(a.suite)
@@ -68,8 +72,12 @@ def main(argv=None):
     out = Path(a.out or ROOT / "out" / "bench" / f"{suite_path.stem}-{a.scale}").resolve()
     bin_dir = Path(a.bin or ROOT / "build" / "bin").resolve()
     out.mkdir(parents=True, exist_ok=True)
+    cost = a.cost or suite.get("run", {}).get("cost", "wall")
+    if cost not in analysis.COST_DEFINITIONS:
+        sys.exit(f"dmmr-bench: {suite_path}: run.cost {cost!r} is not one of wall, cpu, turns")
+    analysis.COST = cost
     runner = Runner(suite, a.scale, out, bin_dir, backend=a.backend, resume=a.resume or a.report_only,
-                    render_options=a.render_option)
+                    render_options=a.render_option, cost=cost)
     cfg = runner.cfg
     scenes = runner.scenes()
     confs = runner.configurations()
@@ -102,8 +110,10 @@ def main(argv=None):
                 "occlusion": "on", "min_vertices": 5000, "visibility_threshold": 0, "query_frame_count": 1,
                 **runner.osg},
         "link_gbps": analysis.LINK_GBPS,
-        "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (prepare+retrieve+load+render+"
-                              "readback+compress ms + bytes_sent at link_gbps); mean over frames 1..",
+        "cost": cost,
+        "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (the client's own work "
+                              "+ bytes_sent at link_gbps); mean over frames 1..; a client's work is its "
+                              + analysis.COST_DEFINITIONS[cost],
     }
     try:
         meta["git"] = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],

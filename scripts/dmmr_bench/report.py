@@ -78,6 +78,12 @@ def table_for_clients(scenes, n):
         f(c["readback_ms"] + c["compress_ms"]) for c in r["per_client"]))
     row("client: send to server", lambda s, r: per_client(r, "send_ms"))
     row("client: own work (prepare+retrieve+load+render+readback+compress)", lambda s, r: per_client(r, "work_ms"))
+    row("client: CPU time, visibility / render stage thread", lambda s, r: " / ".join(
+        f"{f(c['vis_cpu_ms'])}:{f(c['render_cpu_ms'])}" for c in r["per_client"]))
+    row("client: cost used for the derived time", lambda s, r: per_client(r, "cost_ms"))
+    row("derived from wall / from CPU time", lambda s, r: f"{f(r['derived_wall_frame_ms_mean'])} / "
+        f"{f(r.get('derived_cpu_frame_ms_mean'))} ms")
+    row("client time max/mean (median over frames)", lambda s, r: f(r.get("client_max_over_mean_median"), "{:.2f}"))
     row("client: transfer of its sub-frame at the nominal link (derived)", lambda s, r: per_client(r, "transfer_ms", "{:.2f}"))
     row("triangles drawn per client", lambda s, r: per_client(r, "triangles_mean", "{:,.0f}"))
     row("triangles drawn, all / reference", lambda s, r: f"{r['triangles_drawn_mean']:,.0f} / "
@@ -303,6 +309,8 @@ def write(report_dir, meta, scenes, window):
           "visibility stage and render stage instead, as the pipeline would on a real cluster. Ratios compare "
           "with dmmr-reference (brute force, one process) measured in the same run: above 1 dmmr is faster. "
           "Efficiency is tau_1 / (S tau_S) over derived times. Frame 0 (cold caches) is left out of the means.", "",
+          f"**Client cost used for the derived times (`--cost {meta.get('cost', 'wall')}`):** a client's work is "
+          f"its {meta.get('derived_definition', '').split('is its ', 1)[-1]}.", "",
           "## Where dmmr stands", "", verdict(scenes),
           f"Accuracy: every conservative run (query threshold 0) {'matches' if ok else 'does NOT match'} the "
           "reference pixel for pixel" + ("." if ok else ": see the FAIL rows below."), "",

@@ -39,7 +39,8 @@ def run_cmd(cmd, log, env=None):
 
 
 class Runner:
-    def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=()):
+    def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=(),
+                 cost="wall"):
         self.suite, self.scale, self.out, self.bin = suite, scale, Path(out), Path(bin_dir)
         self.backend, self.resume = backend, resume
         # extra dmmr-render options of the plain runs (not the threshold sweep), e.g. --stages fused
@@ -60,6 +61,17 @@ class Runner:
             self.mpi.append("--allow-run-as-root")
         if lp:
             self.mpi += ["-x", "LP_NUM_THREADS"]
+        # How the clients' costs are taken (analysis.COST_DEFINITIONS): cpu runs
+        # dmmr-render with LP_NUM_THREADS=0 (rasterising on the stage threads,
+        # so their CPU time is the whole cost); turns with --stage-turns.
+        self.cost = cost
+        self.render_env = dict(self.env)
+        self.render_mpi = list(self.mpi)
+        if cost == "cpu":
+            self.render_env["LP_NUM_THREADS"] = "0"
+            if not lp:
+                self.render_mpi += ["-x", "LP_NUM_THREADS"]
+        self.render_extra = ["--stage-turns", str(self.out / "stage-turns.lock")] if cost == "turns" else []
         self.timings = {}  # label -> wall seconds
         self.osg = self.osg_settings()  # checked before any run
 
@@ -183,11 +195,11 @@ class Runner:
                 progress.step(f"{name}: {label} comparison reused")
                 continue
             self._fresh(out_dir, csv, cmp_csv)
-            cmd = [*self.mpi, "-np", n + 1, self.bin / "dmmr-render",
+            cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
                    *self.common_opts(scene_dir, path, out_dir, csv),
                    "--compress", self.run_cfg.get("compress", "lz4"),
-                   "--client-timeout", self.run_cfg.get("client_timeout", 600), *extra]
-            dt = run_cmd(cmd, self.log, env=self.env)
+                   "--client-timeout", self.run_cfg.get("client_timeout", 600), *self.render_extra, *extra]
+            dt = run_cmd(cmd, self.log, env=self.render_env)
             self.timings[f"{name}/{label}"] = dt
             progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
                           f"{' ' + ' '.join(extra) if extra else ''} in {dt:.1f} s")

@@ -36,7 +36,7 @@ if failures:
 
 s = json.loads((rep / "summary.json").read_text())
 for k in ("suite", "scale", "command", "machine", "width", "height", "wall_s", "configurations", "scenes",
-          "accuracy_ok", "plots", "derived_definition"):
+          "accuracy_ok", "plots", "derived_definition", "cost"):
     check(k in s, f"summary.json has key {k}")
 check(s.get("accuracy_ok") is True, "summary.json accuracy_ok is true")
 labels = [c["label"] for c in s.get("configurations", [])]
@@ -69,8 +69,13 @@ for sc in s.get("scenes", []):
         check(len(r["per_client"]) == r["clients"], f"{name}/{label}: one entry per client")
         for c in r["per_client"]:
             for k in ("prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms", "send_ms", "work_ms",
-                      "triangles_mean", "bytes_sent_mean", "gpu_hit_rate"):
+                      "triangles_mean", "bytes_sent_mean", "gpu_hit_rate", "vis_cpu_ms", "render_cpu_ms",
+                      "cost_ms"):
                 check(k in c, f"{name}/{label}: client key {k}")
+            # every client renders and compresses a sub-frame each frame: its render thread used CPU
+            check(c.get("render_cpu_ms", 0) > 0, f"{name}/{label}: render stage CPU time recorded")
+        dc = r.get("derived_cpu_frame_ms_mean")
+        check(dc is not None and dc > 0, f"{name}/{label}: derived time from CPU time")
         check(r["frames"] == ref["frames"], f"{name}/{label}: as many frames as the reference")
         check(r["accuracy"]["frames"] == ref["frames"], f"{name}/{label}: every frame compared")
         check(r["triangles_drawn_mean"] > 0, f"{name}/{label}: triangles drawn")

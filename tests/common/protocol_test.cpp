@@ -34,6 +34,8 @@ SubFrame sampleSubFrame(uint32_t frame, Rect r) {
   s.raw_size = uint64_t(r.area()) * 3;
   s.data.assign(size_t(s.raw_size), 0x42);
   s.stats.render_ms = 3.5;
+  s.stats.vis_cpu_ms = 1.25;
+  s.stats.render_cpu_ms = 2.75;
   s.stats.triangles = 1234;
   s.stats.gpu_resident = 99;
   s.drawn = {2, 3};
@@ -168,15 +170,21 @@ TEST(Protocol, RawSizeMustMatchTheRegion) {
 TEST(Protocol, AccumulateSumsTilesAndKeepsTheLatestResidency) {
   ClientStats total, a, b;
   a.render_ms = 2;
+  a.render_cpu_ms = 1.5;
+  a.vis_cpu_ms = 0.5;
   a.triangles = 10;
   a.gpu_resident = 100;
   b.render_ms = 3.5;
+  b.render_cpu_ms = 3;
+  b.vis_cpu_ms = 1;
   b.triangles = 5;
   b.gpu_resident = 80;
   b.ram_resident = 7;
   accumulate(total, a);
   accumulate(total, b);
   EXPECT_DOUBLE_EQ(total.render_ms, 5.5);
+  EXPECT_DOUBLE_EQ(total.render_cpu_ms, 4.5);
+  EXPECT_DOUBLE_EQ(total.vis_cpu_ms, 1.5);
   EXPECT_EQ(total.triangles, 15u);
   EXPECT_EQ(total.gpu_resident, 80u);
   EXPECT_EQ(total.ram_resident, 7u);

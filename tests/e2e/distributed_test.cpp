@@ -248,6 +248,25 @@ TEST(DistributedErrors, ZlibCompressionIsAlsoExact) {
     EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
 }
 
+// The benchmark mode in which GL stages take turns (--stage-turns) changes
+// only when stages run: frames stay exact, with split stages (two GL stages
+// per client) and 2 clients, and every client records its stage threads'
+// CPU time.
+TEST(DistributedErrors, StagesTakingTurnsAreExactAndRecordTheirCpuTime) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "turns";
+  s.render(
+      2, out,
+      "--stages split --stats " + out + ".csv --stage-turns " + std::string(s.dir / "turns.lock"));
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
+  ASSERT_EQ(rows.size(), 4u);
+  for (const test::CsvRow& r : rows)
+    for (const char* c : {"c1_render_cpu_ms", "c2_render_cpu_ms"}) EXPECT_GT(r[c], 0) << c;
+}
+
 TEST(DistributedErrors, ClientWithoutAContextStopsTheRunWithItsMessage) {
   SmallScene& s = smallScene();
   int status = 0;
@@ -446,6 +465,43 @@ INSTANTIATE_TEST_SUITE_P(
     [](const auto& info) {
       return test::slug(std::get<0>(info.param) + "_" + std::get<1>(info.param));
     });
+
+// Heterogeneous clients (--weights fitted): a client slowed 4x on purpose
+// (DMMR_SLOW_CLIENT spins its render stage; LP_NUM_THREADS=0 so that CPU
+// time is each stage's whole cost) is found slow and given a smaller share of
+// the frame than with no client slowed, while every frame stays exact. The
+// share is what the test asserts, never a time.
+TEST(Balance, FittedWeightsGiveASlowedClientASmallerShare) {
+  auto share = [](const std::string& csv) {  // client 2's share of the frame's pixels, frames 12..
+    std::vector<test::CsvRow> rows = test::readCsv(csv);
+    double mine = 0, all = 0;
+    for (size_t f = 12; f < rows.size(); ++f) {
+      mine += rows[f]["c2_bytes_raw"];
+      for (const char* c : {"c1_bytes_raw", "c2_bytes_raw", "c3_bytes_raw"}) all += rows[f][c];
+    }
+    return all > 0 ? mine / all : 0.0;
+  };
+  double shares[2] = {0, 0};
+  for (int slowed = 0; slowed < 2; ++slowed) {
+    std::string out = longPath().dir / ("fitted-" + std::to_string(slowed));
+    std::string env = slowed ? "DMMR_SLOW_CLIENT=2:4" : "DMMR_SLOW_CLIENT=0:1";
+    int status = 0;
+    std::string log = test::runCapture(
+        "LP_NUM_THREADS=0 " + env + " timeout 120 " + test::mpirun(4) +
+            " -x LP_NUM_THREADS -x DMMR_SLOW_CLIENT " + test::tool("dmmr-render") +
+            " --no-progress --width 320 --height 240 --weights fitted --scene " + longPath().scene +
+            " --walkthrough " + longPath().path + " --out " + out + " --stats " + out + ".csv",
+        &status);
+    ASSERT_EQ(status, 0) << log;
+    for (const FrameDiff& d : compareDirectories(longPath().reference, out))
+      EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+    shares[slowed] = share(out + ".csv");
+    std::fprintf(stderr, "client 2's share of the pixels, %s: %.3f\n",
+                 slowed ? "slowed 4x" : "unslowed", shares[slowed]);
+  }
+  EXPECT_GT(shares[0], 0.15) << "client 2 unslowed";
+  EXPECT_LT(shares[1], 0.6 * shares[0]) << "slowed " << shares[1] << ", unslowed " << shares[0];
+}
 
 // An exception of a type that is not std::exception escaping a stage (as a
 // third-party library may throw) ends the run with a message, not with

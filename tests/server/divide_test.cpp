@@ -481,3 +481,72 @@ TEST(DivideFrame, DividingIsDeterministicAndIgnoresInputOrder) {
 
 }  // namespace
 }  // namespace dmmr
+
+namespace dmmr {
+namespace {
+
+// ---- division costs: pixel weight and client speeds ---------------------------
+
+TEST(DivideCosts, NoCostsGiveExactlyThePlainDivision) {
+  Rng rng(31);
+  for (const Rect& frame : kFrames)
+    for (int clients : kClients) {
+      std::vector<Footprint> items = randomFootprints(rng, frame, 300, 40, 5);
+      EXPECT_EQ(divideFrame(items, frame, clients, DivisionCosts{}),
+                divideFrame(items, frame, clients));
+      DivisionCosts equal;
+      equal.speeds.assign(size_t(clients), 2.5);  // equal, whatever the unit
+      EXPECT_EQ(divideFrame(items, frame, clients, equal), divideFrame(items, frame, clients));
+    }
+}
+
+TEST(DivideCosts, AFasterClientGetsTheLargerShareInProportion) {
+  // Uniform weight: 1024 one-pixel-wide columns of weight 10.
+  std::vector<Footprint> items;
+  for (int x = 0; x < 1024; ++x) items.push_back(fp(uint32_t(x), x, x + 1, 0, 64, 10));
+  DivisionCosts c;
+  c.speeds = {1, 3};
+  std::vector<Region> r = divideFrame(items, Rect{0, 0, 1024, 64}, 2, c);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_EQ(r[0].rect.w, 256);  // a quarter of the weight to the client of speed 1
+  EXPECT_EQ(r[1].rect.w, 768);
+  EXPECT_TRUE(test::tilesFrame(r, Rect{0, 0, 1024, 64}, 2));
+}
+
+TEST(DivideCosts, SpeedsStillTileTheFrameWithEveryOverlappingObject) {
+  Rng rng(32);
+  for (const Rect& frame : kFrames)
+    for (int clients : kClients) {
+      std::vector<Footprint> items = randomFootprints(rng, frame, 200, 60, 10);
+      DivisionCosts c;
+      for (int k = 0; k < clients; ++k) c.speeds.push_back(0.25 + rng.integer(0, 100) / 25.0);
+      c.pixel_weight = rng.integer(0, 3);
+      std::vector<Region> regions = divideFrame(items, frame, clients, c);
+      EXPECT_TRUE(test::tilesFrame(regions, frame, clients)) << frame << " " << clients;
+      for (const Region& reg : regions)
+        for (const Footprint& f : items) {
+          bool overlaps = f.x0 < reg.rect.x1() && f.x1 > reg.rect.x && f.y0 < reg.rect.y1() &&
+                          f.y1 > reg.rect.y && !reg.rect.empty();
+          bool listed = std::binary_search(reg.objects.begin(), reg.objects.end(), f.object);
+          EXPECT_EQ(overlaps, listed) << reg.rect << " object " << f.object;
+        }
+    }
+}
+
+TEST(DivideCosts, PixelWeightPullsTheSplitTowardEqualAreas) {
+  // All the objects' weight sits in the left eighth: by objects alone one
+  // client gets that sliver; with a heavy pixel weight the halves near equal.
+  std::vector<Footprint> items;
+  for (int x = 0; x < 128; ++x) items.push_back(fp(uint32_t(x), x, x + 1, 0, 64, 100));
+  Rect frame{0, 0, 1024, 64};
+  int plain = divideFrame(items, frame, 2)[0].rect.w;
+  DivisionCosts c;
+  c.pixel_weight = 10;  // 640 a column against the objects' 100
+  int weighted = divideFrame(items, frame, 2, c)[0].rect.w;
+  EXPECT_LE(plain, 70);
+  EXPECT_GT(weighted, 400);
+  EXPECT_LT(weighted, 512);  // the objects still count: left gets less area
+}
+
+}  // namespace
+}  // namespace dmmr

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Fitted division weights and heterogeneous clients (issue 16): 4 clients on
+# a 4-plant scene, with and without one client slowed 2x (DMMR_SLOW_CLIENT:
+# its render stage spins as long again as it worked), division weights
+# `visible` (triangles drawn lately, the default) against `fitted` (a cost
+# model and each client's speed fitted to the clients' reports), and 1
+# client for the ideal. Every run with LP_NUM_THREADS=0, so that the stage
+# threads' CPU time is each client's whole cost (the figures below), free of
+# waiting for one of this machine's cores. DMMR_BENCH_REPS rounds (default
+# 3), the configurations alternating in each. Every frame is compared with
+# dmmr-reference's.
+# usage: scripts/bench/hetero.sh   (writes out/bench/hetero/, prints Markdown)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+bin=${DMMR_BIN:-build/bin}
+out=${DMMR_BENCH_OUT:-out/bench/hetero}
+reps=${DMMR_BENCH_REPS:-3}
+w=${DMMR_BENCH_WIDTH:-1024}
+h=${DMMR_BENCH_HEIGHT:-768}
+mkdir -p "$out"
+# shellcheck source=lib.sh
+source scripts/bench/lib.sh
+scene plants4 replicate --of plant --copies 4 --triangles 400000 --geodes 5000 --seed 1 --frames 40
+sc=out/bench/plants4.scene
+path=out/bench/plants4.generated.path
+
+if [ ! -f "$out/ref/frame_000039.png" ]; then
+  rm -rf "$out/ref"
+  $bin/dmmr-reference --scene $sc --walkthrough $path --out "$out/ref" --width "$w" --height "$h" \
+    --no-progress >/dev/null
+fi
+
+configs=(  # label|clients|slowed client (0: none)|weights
+  "c1|1|0|visible"
+  "c4-visible|4|0|visible"
+  "c4-fitted|4|0|fitted"
+  "c4-slow-visible|4|2|visible"
+  "c4-slow-fitted|4|2|fitted"
+)
+launch=(mpirun --oversubscribe --bind-to none)
+[ "$(id -u)" -eq 0 ] && launch+=(--allow-run-as-root)
+for r in $(seq 1 "$reps"); do
+  for c in "${configs[@]}"; do
+    IFS='|' read -r label n slow weights <<<"$c"
+    rm -rf "$out/$label-r$r"
+    LP_NUM_THREADS=0 DMMR_SLOW_CLIENT="$slow:2" "${launch[@]}" -np $((n + 1)) \
+      -x LP_NUM_THREADS -x DMMR_SLOW_CLIENT $bin/dmmr-render --scene $sc --walkthrough $path \
+      --out "$out/$label-r$r" --stats "$out/$label-r$r.csv" --width "$w" --height "$h" \
+      --weights "$weights" --no-progress >/dev/null
+    $bin/dmmr-compare "$out/ref" "$out/$label-r$r" --csv "$out/$label-r$r.cmp.csv" \
+      --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
+  done
+done
+python3 scripts/bench/hetero_report.py "$out" "$reps" "${configs[@]}"

@@ -1,0 +1,62 @@
+// A client's cost as a function of its work, fitted from what clients report
+// (`--weights fitted`), and each client's relative speed. Pure code over
+// plain data: no MPI, no GL.
+//
+// A client's work on a frame is modelled as
+//   ms = per_drawn * objects drawn + per_triangle * triangles drawn
+//      + per_tested * objects tested + per_pixel * pixels of its region,
+// divided by the client's speed (1 for a typical client, 0.5 for one that
+// takes twice as long on the same work). The division then weighs an object
+// drawn lately per_drawn + per_triangle * triangles + per_tested, one hidden
+// lately per_tested, and every pixel per_pixel, so that balanced weights mean
+// balanced time, not only balanced triangles.
+#pragma once
+
+#include <cstdint>
+#include <ostream>
+#include <vector>
+
+namespace dmmr {
+
+// One client's frame: its work and the milliseconds it took.
+struct CostSample {
+  int client = 0;  // 0-based
+  double drawn = 0, triangles = 0, tested = 0, pixels = 0;
+  double ms = 0;
+  friend bool operator==(const CostSample&, const CostSample&) = default;
+};
+
+struct CostModel {
+  double per_drawn = 0, per_triangle = 0, per_tested = 0, per_pixel = 0;  // ms each
+  bool fitted = false;  // false: too little or degenerate data; use triangles
+  friend bool operator==(const CostModel&, const CostModel&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const CostModel& m);
+
+// The model's milliseconds for a sample's work at speed 1.
+double predictMs(const CostModel& m, const CostSample& s);
+
+// Least squares with every coefficient >= 0 (the best over the subsets of
+// coefficients whose unconstrained fit is non-negative), over samples whose
+// ms are first multiplied by their client's speed (`speeds` indexed by
+// client; empty: all 1). Samples with a non-finite or negative time are left
+// out. Unfitted when fewer than 4 samples remain or no subset fits.
+CostModel fitCostModel(const std::vector<CostSample>& samples,
+                       const std::vector<double>& speeds = {});
+
+// A client's speed: the model's time for its samples' work over the time they
+// took, normalised so that the clients' speeds average 1 and clamped to
+// [1/8, 8]; when every speed lies within [1/kSpeedDeadband, kSpeedDeadband]
+// all are taken as 1.
+// Clients without samples get 1. Returns `clients` values.
+constexpr double kSpeedDeadband = 1.25;
+std::vector<double> clientSpeeds(const CostModel& m, const std::vector<CostSample>& samples,
+                                 int clients);
+
+// Fits the model and the speeds together: speeds from the model, the model
+// again on speed-normalised times, a few rounds. `speeds` out: `clients`
+// values (all 1 when the model cannot be fitted).
+CostModel fitCostsAndSpeeds(const std::vector<CostSample>& samples, int clients,
+                            std::vector<double>* speeds);
+
+}  // namespace dmmr
