@@ -24,6 +24,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--lod-error", o.lod_error, "occluder level of detail: relative error bound")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--cluster-triangles", o.cluster_triangles,
+                 "split meshes of more triangles than this into clusters of at most this many, "
+                 "each its own object (0: keep meshes whole)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   std::string encoding = dmmr::encodingName(o.encoding);
   app.add_option("--encoding", encoding,
                  "geometry encoding: float32 (default, exact), meshopt (exact), quantized, "
@@ -74,6 +79,9 @@ int main(int argc, char** argv) {
         s.seconds > 0 ? double(s.triangles) / s.seconds / 1e6 : 0.0);
     if (o.encoding != dmmr::Encoding::Float32)
       std::printf("%s: geometry encoding %s\n", o.out.c_str(), dmmr::encodingName(o.encoding));
+    if (s.split_meshes)
+      std::printf("%s: %llu meshes split into clusters of at most %llu triangles\n", o.out.c_str(),
+                  (unsigned long long)s.split_meshes, (unsigned long long)o.cluster_triangles);
     if (s.lod_geometries)
       std::printf("%s: occluder levels of detail for %llu geometries, %llu triangles\n",
                   o.out.c_str(), (unsigned long long)s.lod_geometries,

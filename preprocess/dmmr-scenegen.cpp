@@ -3,10 +3,10 @@
 //   dmmr-scenegen plant    [--seed S] [--triangles T] [--geodes G] -o OUT.osgb
 //   dmmr-scenegen monument [--seed S] [--triangles T] [--geodes G] -o OUT.osgb
 //   dmmr-scenegen replicate --copies N (--input FILE | --of plant|monument ...)
-//                 [--spacing M] -o OUT.osgb
+//                 [--spacing M] [--subdivide N] -o OUT.osgb
 // Every command also takes --walkthrough PATH (default: OUT with extension
-// .path), --frames N (default 120) and --path fly|orbit. plant and monument
-// take --parts N: N scenes of unique geometry (seeds S..S+N-1, T/N
+// .path), --frames N (default 120) and --path fly|orbit|around. plant and
+// monument take --parts N: N scenes of unique geometry (seeds S..S+N-1, T/N
 // triangles each) on a grid, written one at a time to OUT-000.EXT ... (a
 // scene larger than memory, as many files; the walkthrough spans them all).
 #include <algorithm>
@@ -33,7 +33,7 @@ namespace {
 
 struct Options {
   std::string output, walkthrough, input, of, path;
-  uint32_t frames = 120, copies = 0, parts = 0;
+  uint32_t frames = 120, copies = 0, parts = 0, subdivide = 1;
   double spacing = 0;
   uint64_t seed = 1, triangles = 1'000'000;
   uint32_t geodes = 0;
@@ -54,8 +54,9 @@ void addOutputOptions(CLI::App* cmd, Options& o) {
       ->check(kUnsigned)
       ->capture_default_str();
   cmd->add_option("--path", o.path,
-                  "camera path kind (default: fly, orbit for one copy of a model)")
-      ->check(CLI::IsMember({"fly", "orbit"}));
+                  "camera path kind (default: fly, orbit for one copy of a model; around: a "
+                  "circle close around the scene's box, looking at its centre)")
+      ->check(CLI::IsMember({"fly", "orbit", "around"}));
 }
 
 void addGeneratorOptions(CLI::App* cmd, Options& o) {
@@ -194,6 +195,7 @@ void run(const std::string& command, Options& o) {
       throw dmmr::Error("replicate needs exactly one of --input FILE or --of plant|monument");
     osg::ref_ptr<osg::Node> input = o.of.empty() ? readInput(o.input) : generate(o.of, o);
     try {
+      input = sg::subdivide(input.get(), o.subdivide);
       scene = sg::replicate(input.get(), o.copies, o.spacing);
     } catch (const dmmr::Error& e) {
       throw dmmr::Error(o.input.empty() ? e.what() : dmmr::fileError(o.input, e.what()));
@@ -202,10 +204,12 @@ void run(const std::string& command, Options& o) {
   } else {
     scene = generate(command, o);
   }
-  if (!o.path.empty()) orbit = o.path == "orbit";
+  sg::PathKind kind = orbit ? sg::PathKind::Orbit : sg::PathKind::FlyThrough;
+  if (o.path == "orbit") kind = sg::PathKind::Orbit;
+  if (o.path == "fly") kind = sg::PathKind::FlyThrough;
+  if (o.path == "around") kind = sg::PathKind::Around;
 
-  dmmr::Walkthrough w = sg::makeWalkthrough(sg::sceneBounds(*scene), o.frames,
-                                            orbit ? sg::PathKind::Orbit : sg::PathKind::FlyThrough);
+  dmmr::Walkthrough w = sg::makeWalkthrough(sg::sceneBounds(*scene), o.frames, kind);
   writeSceneAtomic(*scene, o.output);
   dmmr::writeWalkthrough(o.walkthrough, w);
 
@@ -239,6 +243,10 @@ int main(int argc, char** argv) {
         ->check(kUnsigned);
   rep->add_option("--spacing", o.spacing, "grid spacing in metres (<= 0: automatic)");
   rep->add_option("--input", o.input, "model to replicate (any format OSG reads)");
+  rep->add_option("--subdivide", o.subdivide,
+                  "cut every triangle of the input into N*N (one dense mesh of a scanned model)")
+      ->check(CLI::Range(1u, 1000u))
+      ->capture_default_str();
   rep->add_option("--of", o.of, "replicate a freshly generated scene instead")
       ->check(CLI::IsMember({"plant", "monument"}));
   try {

@@ -24,6 +24,7 @@
 
 #include "assimp_reader.h"
 #include "atomic_file.h"
+#include "cluster.h"
 #include "error.h"
 #include "plugin_guard.h"
 
@@ -149,8 +150,15 @@ bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData*
 struct GeometryInfo {
   Vec3d center;   // local offset folded into each instance's transform
   Box3d box;      // bounds of the recentred positions
-  double radius;  // around the box centre (0, 0, 0 after recentring)
+  double radius;  // around the box centre
   uint64_t triangles;
+};
+
+// One merged geode geometry as objects see it: one geometry, or the
+// clusters it was split into (all recentred on the mesh's centre).
+struct MeshInfo {
+  std::vector<uint32_t> geometries;  // empty: nothing drawable
+  Box3d box;                         // the whole mesh's recentred box
 };
 
 class SceneWriter {
@@ -178,8 +186,11 @@ class SceneWriter {
   uint32_t addNode(NodeKind kind, uint32_t parent, uint32_t object, const std::string& name);
   void addObject(const osg::Node* node, const std::vector<const osg::Geometry*>& drawables,
                  const Mat4d& world, const InheritedState& state, uint32_t parent);
-  uint32_t geometryFor(const osg::Node* key, const std::vector<const osg::Geometry*>& drawables,
-                       const InheritedState& state);
+  const MeshInfo& meshFor(const osg::Node* key, const std::vector<const osg::Geometry*>& drawables,
+                          const InheritedState& state);
+  uint32_t addGeometry(GeometryData g, const Vec3d& center);
+  uint32_t addObject(uint32_t geometry, const Mat4d& world, uint32_t parent,
+                     const std::string& name);
   void appendDrawable(const osg::Geometry& geom, InheritedState state, GeometryData* g,
                       std::vector<double>* positions, const std::vector<bool>& attrs);
   int32_t textureFor(const osg::Texture2D* tex);
@@ -193,8 +204,9 @@ class SceneWriter {
   std::vector<SkeletonNode> skeleton_;
   std::vector<ObjectBounds> objects_;
   std::vector<GeometryInfo> geometries_;
-  std::map<std::tuple<const osg::Node*, const osg::Material*, const osg::Texture2D*>, uint32_t>
+  std::map<std::tuple<const osg::Node*, const osg::Material*, const osg::Texture2D*>, MeshInfo>
       geometry_index_;
+  Box3d scene_box_;  // of whole meshes: clustering leaves the default near plane as it was
   std::map<const osg::Image*, int32_t> texture_index_;
   PreprocessStats stats_;
   Clock::time_point start_ = Clock::now(), last_progress_ = Clock::now();
@@ -266,8 +278,23 @@ void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedS
 void SceneWriter::addObject(const osg::Node* node,
                             const std::vector<const osg::Geometry*>& drawables, const Mat4d& world,
                             const InheritedState& state, uint32_t parent) {
-  uint32_t gi = geometryFor(node, drawables, state);
-  if (gi == kNone) return;  // nothing drawable (no triangles)
+  const MeshInfo& mesh = meshFor(node, drawables, state);
+  if (mesh.geometries.empty()) return;  // nothing drawable (no triangles)
+  const Vec3d& center = geometries_[mesh.geometries[0]].center;
+  scene_box_.expand(transformBox(world * Mat4d::translate(center), mesh.box));
+  if (mesh.geometries.size() == 1) {
+    addObject(mesh.geometries[0], world, parent, node->getName());
+    return;
+  }
+  // A split mesh: one group holding its clusters, in the clusters' order.
+  uint32_t group = addNode(NodeKind::Group, parent, kNone, node->getName());
+  for (size_t k = 0; k < mesh.geometries.size(); ++k)
+    addObject(mesh.geometries[k], world, group, "cluster " + std::to_string(k));
+  skeleton_[group].end = uint32_t(skeleton_.size());
+}
+
+uint32_t SceneWriter::addObject(uint32_t gi, const Mat4d& world, uint32_t parent,
+                                const std::string& name) {
   const GeometryInfo& info = geometries_[gi];
   ObjectBounds o;
   o.geometry = gi;
@@ -279,17 +306,59 @@ void SceneWriter::addObject(const osg::Node* node,
   o.weight = info.triangles;
   uint32_t index = uint32_t(objects_.size());
   objects_.push_back(o);
-  uint32_t self = addNode(NodeKind::Object, parent, index, node->getName());
+  uint32_t self = addNode(NodeKind::Object, parent, index, name);
   skeleton_[self].end = self + 1;
   stats_.triangles += info.triangles;
   progress();
+  return index;
 }
 
-uint32_t SceneWriter::geometryFor(const osg::Node* key,
-                                  const std::vector<const osg::Geometry*>& drawables,
-                                  const InheritedState& state) {
+// The cluster of `g` made of triangles `tris` (ascending): their corners in
+// order, the vertices they use (compacted, values copied bit for bit) and
+// the submeshes they fall in.
+GeometryData extractCluster(const GeometryData& g, const std::vector<uint32_t>& tris) {
+  GeometryData c;
+  std::unordered_map<uint32_t, uint32_t> remap;
+  remap.reserve(tris.size() * 2);
+  size_t sm = 0, last = SIZE_MAX;  // the submesh of `t`, and of c.submeshes.back()
+  for (uint32_t t : tris) {
+    uint32_t first = 3 * t;
+    while (first >= g.submeshes[sm].first_index + g.submeshes[sm].index_count) ++sm;
+    if (sm != last) {
+      last = sm;
+      SubMesh s = g.submeshes[sm];
+      s.first_index = uint32_t(c.indices.size());
+      s.index_count = 0;
+      c.submeshes.push_back(s);
+    }
+    for (uint32_t k = 0; k < 3; ++k) {
+      uint32_t v = g.indices[first + k];
+      auto [it, added] = remap.emplace(v, uint32_t(remap.size()));
+      if (added) {
+        c.positions.insert(c.positions.end(), &g.positions[3 * size_t(v)],
+                           &g.positions[3 * size_t(v)] + 3);
+        if (!g.normals.empty())
+          c.normals.insert(c.normals.end(), &g.normals[3 * size_t(v)],
+                           &g.normals[3 * size_t(v)] + 3);
+        if (!g.colors.empty())
+          c.colors.insert(c.colors.end(), &g.colors[4 * size_t(v)], &g.colors[4 * size_t(v)] + 4);
+        if (!g.texcoords.empty())
+          c.texcoords.insert(c.texcoords.end(), &g.texcoords[2 * size_t(v)],
+                             &g.texcoords[2 * size_t(v)] + 2);
+      }
+      c.indices.push_back(it->second);
+    }
+    c.submeshes.back().index_count += 3;
+  }
+  return c;
+}
+
+const MeshInfo& SceneWriter::meshFor(const osg::Node* key,
+                                     const std::vector<const osg::Geometry*>& drawables,
+                                     const InheritedState& state) {
   auto k = std::make_tuple(key, state.material, state.texture);
   if (auto it = geometry_index_.find(k); it != geometry_index_.end()) return it->second;
+  MeshInfo& mesh = geometry_index_[k];
   // Which optional attributes any drawable has: the merged geometry carries
   // an attribute only if at least one drawable does.
   std::vector<bool> attrs(3, false);
@@ -303,18 +372,33 @@ uint32_t SceneWriter::geometryFor(const osg::Node* key,
   GeometryData g;
   std::vector<double> pos;
   for (const osg::Geometry* d : drawables) appendDrawable(*d, state, &g, &pos, attrs);
-  if (g.indices.empty()) {
-    geometry_index_[k] = kNone;
-    return kNone;
-  }
+  if (g.indices.empty()) return mesh;
   // Recentre on the box centre in double before converting to float, so a
-  // model placed far from the origin keeps its precision.
+  // model placed far from the origin keeps its precision. Clusters share
+  // the mesh's centre, so their floats are the unsplit mesh's, bit for bit.
   Box3d box;
   for (size_t i = 0; i < pos.size(); i += 3) box.expand(Vec3d{pos[i], pos[i + 1], pos[i + 2]});
-  GeometryInfo info;
-  info.center = box.center();
+  Vec3d center = box.center();
   g.positions.resize(pos.size());
-  for (size_t i = 0; i < pos.size(); ++i) g.positions[i] = float(pos[i] - info.center[int(i % 3)]);
+  for (size_t i = 0; i < pos.size(); ++i) g.positions[i] = float(pos[i] - center[int(i % 3)]);
+  pos = {};
+  for (size_t i = 0; i < g.positions.size(); i += 3)
+    mesh.box.expand(Vec3d{g.positions[i], g.positions[i + 1], g.positions[i + 2]});
+  if (opts_.cluster_triangles == 0 || g.triangleCount() <= opts_.cluster_triangles) {
+    mesh.geometries.push_back(addGeometry(std::move(g), center));
+    return mesh;
+  }
+  ++stats_.split_meshes;
+  for (const auto& tris : clusterTriangles(g.positions.data(), g.vertexCount(), g.indices.data(),
+                                           g.indices.size(), opts_.cluster_triangles))
+    mesh.geometries.push_back(addGeometry(extractCluster(g, tris), center));
+  return mesh;
+}
+
+// Writes `g` (positions already relative to `center`) as a new geometry.
+uint32_t SceneWriter::addGeometry(GeometryData g, const Vec3d& center) {
+  GeometryInfo info;
+  info.center = center;
   auto at = [&](size_t i) { return Vec3d{g.positions[i], g.positions[i + 1], g.positions[i + 2]}; };
   for (size_t i = 0; i < g.positions.size(); i += 3) info.box.expand(at(i));
   double r2 = 0;
@@ -327,7 +411,6 @@ uint32_t SceneWriter::geometryFor(const osg::Node* key,
   addLevelOfDetail(&g);
   uint32_t index = uint32_t(geometries_.size());
   geometries_.push_back(info);
-  geometry_index_[k] = index;
   writeFile(geometryFileName(index), encodeGeometry(g, opts_.encoding));
   stats_.unique_triangles += info.triangles;
   return index;
@@ -499,7 +582,7 @@ void SceneWriter::finish(PreprocessStats* stats) {
   manifest_.occluders = occluders.size();
   manifest_.triangles = stats_.triangles;
   manifest_.unique_triangles = stats_.unique_triangles;
-  manifest_.bounds = skeleton_[0].box;
+  manifest_.bounds = scene_box_;
   manifest_.encoding = opts_.encoding;
   writeFileAtomic(tmp_ + "/manifest.json", encodeManifest(manifest_));
   stats_.objects = objects_.size();

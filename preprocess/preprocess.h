@@ -36,6 +36,10 @@ struct PreprocessOptions {
   double lod_ratio = 0;
   double lod_error = 0.01;
   uint64_t lod_min_triangles = 64;  // smaller geometries get no level of detail
+  // Meshes (a geode's merged geometry) of more triangles than this are split
+  // into clusters of at most this many (preprocess/cluster.h), each its own
+  // object, under one group per mesh; 0 keeps every mesh whole.
+  uint64_t cluster_triangles = 4096;
   // How geometry files store vertices and indices (formats.h); recorded in
   // the manifest. The default is exact; Quantized and QuantizedMeshopt are
   // lossy (docs/scene-format.md gives their error bounds).
@@ -49,6 +53,7 @@ struct PreprocessStats {
   uint64_t dropped_triangles = 0;                  // triangles that used such vertices
   uint64_t degenerate_triangles = 0;               // with coinciding corners (no pixels): dropped
   uint64_t skipped_drawables = 0;                  // drawables that are not triangle geometry
+  uint64_t split_meshes = 0;                       // meshes split into clusters
   uint64_t lod_geometries = 0, lod_triangles = 0;  // levels of detail stored
   uint64_t bytes_written = 0;
   uint64_t inputs = 0, skipped_inputs = 0;  // model files read, and skipped as unreadable

@@ -1492,6 +1492,140 @@ osg::ref_ptr<osg::Node> replicate(osg::Node* input, uint32_t copies, double spac
   return root;
 }
 
+namespace {
+
+// Subdivides one geometry (see subdivide in scenegen.h); null when it has no
+// triangles over a Vec3Array.
+osg::ref_ptr<osg::Geometry> subdivideGeometry(const osg::Geometry& src, uint32_t n) {
+  auto* pos = dynamic_cast<const osg::Vec3Array*>(src.getVertexArray());
+  if (!pos || pos->empty()) return nullptr;
+  struct Collect {
+    std::vector<uint32_t>* out;
+    void operator()(unsigned a, unsigned b, unsigned c) { out->insert(out->end(), {a, b, c}); }
+  };
+  std::vector<uint32_t> tris;
+  osg::TriangleIndexFunctor<Collect> f;
+  f.out = &tris;
+  const_cast<osg::Geometry&>(src).accept(f);
+  size_t nv = pos->size();
+  for (uint32_t v : tris)
+    if (v >= nv) return nullptr;
+  if (tris.empty()) return nullptr;
+  auto perVertex = [&](const osg::Array* a) {
+    return a && a->getBinding() == osg::Array::BIND_PER_VERTEX && a->getNumElements() == nv
+               ? a
+               : nullptr;
+  };
+  auto* nrm = dynamic_cast<const osg::Vec3Array*>(perVertex(src.getNormalArray()));
+  auto* col = dynamic_cast<const osg::Vec4Array*>(perVertex(src.getColorArray()));
+  auto* uv = dynamic_cast<const osg::Vec2Array*>(perVertex(src.getTexCoordArray(0)));
+  osg::ref_ptr<osg::Vec3Array> opos = new osg::Vec3Array, onrm = nrm ? new osg::Vec3Array : nullptr;
+  osg::ref_ptr<osg::Vec4Array> ocol = col ? new osg::Vec4Array : nullptr;
+  osg::ref_ptr<osg::Vec2Array> ouv = uv ? new osg::Vec2Array : nullptr;
+  // A new vertex at sum(w_k * v_k) / n over (vertex, weight) pairs, in the
+  // order given.
+  auto mix = [&](std::initializer_list<std::pair<uint32_t, uint32_t>> w) {
+    auto blend = [&](const auto* a, auto* out) {
+      if (!a) return;
+      using V = typename std::decay_t<decltype(*a)>::value_type;
+      double acc[4] = {0, 0, 0, 0};
+      for (auto [v, k] : w)
+        for (int i = 0; i < V::num_components; ++i) acc[i] += double((*a)[v][i]) * k;
+      V r;
+      for (int i = 0; i < V::num_components; ++i) r[i] = float(acc[i] / n);
+      out->push_back(r);
+    };
+    blend(pos, opos.get());
+    blend(nrm, onrm.get());
+    blend(col, ocol.get());
+    blend(uv, ouv.get());
+    return uint32_t(opos->size() - 1);
+  };
+  std::vector<uint32_t> corner(nv, UINT32_MAX);
+  auto vertex = [&](uint32_t v) {
+    if (corner[v] == UINT32_MAX) corner[v] = mix({{v, n}});
+    return corner[v];
+  };
+  std::unordered_map<uint64_t, uint32_t> edges;  // (lo, hi) -> its n - 1 inner points, lo to hi
+  auto onEdge = [&](uint32_t u, uint32_t v, uint32_t t) {  // t steps of n from u towards v
+    if (t == 0) return vertex(u);
+    if (t == n) return vertex(v);
+    uint32_t lo = std::min(u, v), hi = std::max(u, v);
+    auto [it, fresh] = edges.try_emplace(uint64_t(lo) << 32 | hi, 0);
+    if (fresh) {
+      it->second = uint32_t(opos->size());
+      for (uint32_t k = 1; k < n; ++k) mix({{lo, n - k}, {hi, k}});
+    }
+    return it->second + (u == lo ? t : n - t) - 1;
+  };
+  auto* out = new osg::DrawElementsUInt(GL_TRIANGLES);
+  out->reserve(tris.size() * n * n);
+  std::vector<uint32_t> grid;  // point (i, j) of the current triangle, i along a-b, j along a-c
+  for (size_t t = 0; t < tris.size(); t += 3) {
+    uint32_t a = tris[t], b = tris[t + 1], c = tris[t + 2];
+    grid.assign(size_t(n + 1) * (n + 1), 0);
+    auto at = [&](uint32_t i, uint32_t j) -> uint32_t& { return grid[size_t(i) * (n + 1) + j]; };
+    for (uint32_t i = 0; i <= n; ++i)
+      for (uint32_t j = 0; i + j <= n; ++j) {
+        if (j == 0)
+          at(i, j) = onEdge(a, b, i);
+        else if (i == 0)
+          at(i, j) = onEdge(a, c, j);
+        else if (i + j == n)
+          at(i, j) = onEdge(b, c, j);
+        else
+          at(i, j) = mix({{a, n - i - j}, {b, i}, {c, j}});
+      }
+    for (uint32_t i = 0; i < n; ++i)
+      for (uint32_t j = 0; i + j < n; ++j) {
+        for (uint32_t v : {at(i, j), at(i + 1, j), at(i, j + 1)}) out->push_back(v);
+        if (i + j + 1 < n)
+          for (uint32_t v : {at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}) out->push_back(v);
+      }
+  }
+  osg::ref_ptr<osg::Geometry> g = new osg::Geometry;
+  g->setName(src.getName());
+  g->setStateSet(const_cast<osg::StateSet*>(src.getStateSet()));
+  g->setVertexArray(opos);
+  if (onrm) g->setNormalArray(onrm, osg::Array::BIND_PER_VERTEX);
+  if (ocol) g->setColorArray(ocol, osg::Array::BIND_PER_VERTEX);
+  if (ouv) g->setTexCoordArray(0, ouv, osg::Array::BIND_PER_VERTEX);
+  g->addPrimitiveSet(out);
+  return g;
+}
+
+// Copies every geode once (instances stay shared) with subdivided geometry.
+osg::ref_ptr<osg::Node> subdivideNode(
+    osg::Node* node, uint32_t n, std::unordered_map<osg::Node*, osg::ref_ptr<osg::Node>>& done) {
+  if (auto it = done.find(node); it != done.end()) return it->second;
+  osg::ref_ptr<osg::Node> result = node;
+  if (auto* geode = node->asGeode()) {
+    osg::ref_ptr<osg::Geode> copy = new osg::Geode(*geode, osg::CopyOp::SHALLOW_COPY);
+    for (unsigned i = 0; i < copy->getNumDrawables(); ++i)
+      if (auto* g = copy->getDrawable(i)->asGeometry())
+        if (auto s = subdivideGeometry(*g, n)) copy->setDrawable(i, s);
+    result = copy;
+  } else if (auto* group = node->asGroup()) {
+    osg::ref_ptr<osg::Group> copy =
+        dynamic_cast<osg::Group*>(group->clone(osg::CopyOp::SHALLOW_COPY));
+    for (unsigned i = 0; i < copy->getNumChildren(); ++i)
+      copy->setChild(i, subdivideNode(copy->getChild(i), n, done));
+    result = copy;
+  }
+  done[node] = result;
+  return result;
+}
+
+}  // namespace
+
+osg::ref_ptr<osg::Node> subdivide(osg::Node* input, uint32_t n) {
+  if (!input) throw Error("subdivide: no input scene");
+  if (n == 0 || n > 1000) throw Error("subdivide: n must be in 1..1000");
+  if (n == 1) return input;
+  std::unordered_map<osg::Node*, osg::ref_ptr<osg::Node>> done;
+  return subdivideNode(input, n, done);
+}
+
 osg::BoundingBox sceneBounds(osg::Node& node) {
   osg::ComputeBoundsVisitor cbv;
   node.accept(cbv);
@@ -1518,6 +1652,11 @@ Walkthrough makeWalkthrough(const osg::BoundingBox& box, uint32_t frames, PathKi
       heading = length(heading) > 0 ? normalize(heading) : Vec3d{1, 0, 0};
       const double pitch = 10 * kPi / 180;
       target = eye + heading * std::cos(pitch) + Vec3d{0, 0, -std::sin(pitch)};
+    } else if (kind == PathKind::Around) {
+      double phi = 2 * kPi * i / frames, r = 0.4 * std::hypot(dx, dy);
+      if (!(r > 0)) r = radius;
+      eye = c + Vec3d{std::cos(phi) * r, std::sin(phi) * r, 0.25 * dz};
+      target = c;
     } else {
       double phi = 2 * kPi * i / frames, elev = 20 * kPi / 180, r = 2.2 * radius;
       eye =

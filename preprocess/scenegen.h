@@ -79,6 +79,19 @@ osg::ref_ptr<osg::Node> makeMonument(const MonumentParams& params);
 // input's bounds are empty (no geometry), or spacing is not finite.
 osg::ref_ptr<osg::Node> replicate(osg::Node* input, uint32_t copies, double spacing);
 
+// A copy of `input` in which every geode's osg::Geometry is replaced by one
+// whose triangles are each cut into n * n: every edge into n equal parts,
+// new points on the triangle's plane, per-vertex normals, colours and unit-0
+// texture coordinates interpolated linearly (in double). Points on an edge
+// are computed from its end points in one order and shared by the
+// triangles on both sides, so no cracks open; winding is kept. Makes one
+// dense mesh of a scanned model (the skull's 100k triangles, n = 5: 2.5M)
+// for testing clustering. Geometries that are not triangles over a Vec3Array
+// are kept as they are; scene-graph nodes other than geodes are shared with
+// `input`. n = 1 returns `input` itself. Throws dmmr::Error when input is null or n
+// is 0 or over 1000.
+osg::ref_ptr<osg::Node> subdivide(osg::Node* input, uint32_t n);
+
 enum class PathKind {
   // From 0.2 of the X extent outside the box's -X side to 0.9 of the way
   // across, at one third of the height, with a gentle turn (Y follows a
@@ -90,6 +103,11 @@ enum class PathKind {
   // A full circle around the box centre at 2.2 * half its diagonal, 20 degrees
   // above the horizon, always looking at the centre. For arbitrary models.
   Orbit,
+  // A full circle around the box centre, close: radius 0.8 of half the XY
+  // diagonal, a quarter of the height above the centre, always looking at
+  // the centre. Around a 2x2 `replicate` grid it passes each copy at about
+  // a fifth of its size (the copy fills the view) and between neighbours.
+  Around,
 };
 
 // Bounds of all geometry under `node`, transforms applied.

@@ -271,6 +271,65 @@ TEST(PlantTest, RejectsZeroSizes) {
   EXPECT_THROW(sg::makePlant({1, 1000, 0}), dmmr::Error);
 }
 
+// ------------------------------------------------------------------ subdivide
+
+TEST(SubdivideTest, CutsEveryTriangleKeepingShapeWindingAndInstances) {
+  osg::ref_ptr<osg::Node> rep = sg::replicate(smallPlant().get(), 2, 0);
+  osg::ref_ptr<osg::Node> sub = sg::subdivide(rep.get(), 3);
+  sg::SceneStats a = sg::sceneStats(*rep), b = sg::sceneStats(*sub);
+  EXPECT_EQ(b.triangles, 9 * a.triangles);
+  EXPECT_EQ(b.geodes, a.geodes);  // the copies still share every geode
+  EXPECT_EQ(b.geodeInstances, a.geodeInstances);
+  EXPECT_EQ(sg::sceneStats(*rep).triangles, a.triangles);  // the input is left as it was
+  osg::BoundingBox ba = sg::sceneBounds(*rep), bb = sg::sceneBounds(*sub);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(ba._min[k], bb._min[k], 1e-4);
+    EXPECT_NEAR(ba._max[k], bb._max[k], 1e-4);
+  }
+  expectOutwardWinding(*sub);
+  // Same enclosed volume per closed flat part: no cracks, no flipped pieces.
+  auto ia = collect(*rep).items, ib = collect(*sub).items;
+  ASSERT_EQ(ia.size(), ib.size());
+  for (size_t i = 0; i < ia.size(); ++i) {
+    osg::Geometry& ga = *ia[i].geode->getDrawable(0)->asGeometry();
+    if (ga.getNormalArray()) continue;
+    osg::TriangleFunctor<VolumeSum> fa, fb;
+    ga.accept(fa);
+    ib[i].geode->getDrawable(0)->accept(fb);
+    EXPECT_NEAR(fa.v, fb.v, 1e-4 * std::fabs(fa.v) + 1e-9) << i;
+  }
+}
+
+TEST(SubdivideTest, EdgePointsAreShared) {
+  // A closed tetrahedron: V + E (n - 1) + F (n - 1)(n - 2) / 2 vertices.
+  auto* v = new osg::Vec3Array;
+  for (osg::Vec3 p :
+       {osg::Vec3(0, 0, 0), osg::Vec3(1, 0, 0), osg::Vec3(0, 1, 0), osg::Vec3(0, 0, 1)})
+    v->push_back(p);
+  auto* geom = new osg::Geometry;
+  geom->setVertexArray(v);
+  const GLuint idx[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  geom->addPrimitiveSet(new osg::DrawElementsUInt(GL_TRIANGLES, 12, idx));
+  osg::ref_ptr<osg::Geode> g = new osg::Geode;
+  g->addDrawable(geom);
+  const uint32_t n = 4;
+  osg::ref_ptr<osg::Node> sub = sg::subdivide(g.get(), n);
+  const osg::Geometry* out = sub->asGeode()->getDrawable(0)->asGeometry();
+  EXPECT_EQ(out->getVertexArray()->getNumElements(), 4 + 6 * (n - 1) + 4 * (n - 1) * (n - 2) / 2);
+  EXPECT_EQ(sg::countTriangles(*out), 4 * n * n);
+  osg::TriangleFunctor<VolumeSum> fa, fb;
+  geom->accept(fa);
+  const_cast<osg::Geometry*>(out)->accept(fb);
+  EXPECT_NEAR(fb.v, fa.v, 1e-7);
+}
+
+TEST(SubdivideTest, OneIsTheInputAndBadCountsThrow) {
+  osg::ref_ptr<osg::Node> plant = smallPlant();
+  EXPECT_EQ(sg::subdivide(plant.get(), 1).get(), plant.get());
+  EXPECT_THROW(sg::subdivide(plant.get(), 0), dmmr::Error);
+  EXPECT_THROW(sg::subdivide(nullptr, 2), dmmr::Error);
+}
+
 // ------------------------------------------------------------------ monument
 
 TEST(MonumentTest, DeterministicAndNearTarget) {
@@ -434,6 +493,19 @@ TEST(WalkthroughTest, OrbitLooksAtCentre) {
     EXPECT_NEAR(dmmr::length(p.position - c), 2.2 * bb.radius(), 1e-6);
     EXPECT_GT(facing(p, c), 0.9999);
     EXPECT_GT(dmmr::rotate(p.rotation, {0, 1, 0}).z, 0);  // upright
+  }
+}
+
+TEST(WalkthroughTest, AroundCirclesCloseLookingAtCentre) {
+  osg::BoundingBox bb(-4, -3, 0, 4, 3, 2);
+  auto w = sg::makeWalkthrough(bb, 48, sg::PathKind::Around);
+  expectWellFormed(w, 48);
+  dmmr::Vec3d c = toDmmr(bb.center());
+  for (const auto& p : w.points) {
+    dmmr::Vec3d d = p.position - c;
+    EXPECT_NEAR(std::hypot(d.x, d.y), 0.4 * 10, 1e-9);  // 0.8 of half the XY diagonal
+    EXPECT_NEAR(d.z, 0.5, 1e-9);
+    EXPECT_GT(facing(p, c), 0.9999);
   }
 }
 

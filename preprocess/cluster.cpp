@@ -1,0 +1,74 @@
+#include "cluster.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace dmmr {
+
+namespace {
+
+struct Splitter {
+  const std::vector<float>& centroids;  // xyz per triangle (sums of corners: thirds left out)
+  size_t max_triangles;
+  std::vector<std::vector<uint32_t>>* out;
+
+  // Splits tris[begin, end) into ceil(n / max_triangles) clusters.
+  void split(std::vector<uint32_t>& tris, size_t begin, size_t end) {
+    size_t n = end - begin;
+    if (n <= max_triangles) {
+      out->emplace_back(tris.begin() + long(begin), tris.begin() + long(end));
+      std::sort(out->back().begin(), out->back().end());
+      return;
+    }
+    float lo[3] = {centroids[3 * tris[begin]], centroids[3 * tris[begin] + 1],
+                   centroids[3 * tris[begin] + 2]};
+    float hi[3] = {lo[0], lo[1], lo[2]};
+    for (size_t i = begin; i < end; ++i)
+      for (int k = 0; k < 3; ++k) {
+        float c = centroids[3 * tris[i] + k];
+        lo[k] = std::min(lo[k], c);
+        hi[k] = std::max(hi[k], c);
+      }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    // Halves sized for whole clusters: with c clusters in all, the first
+    // c / 2 of them take n * (c / 2) / c triangles, at most (c / 2) * max.
+    size_t clusters = (n + max_triangles - 1) / max_triangles;
+    size_t mid = begin + n * (clusters / 2) / clusters;
+    std::nth_element(tris.begin() + long(begin), tris.begin() + long(mid), tris.begin() + long(end),
+                     [&](uint32_t a, uint32_t b) {
+                       float ca = centroids[3 * a + axis], cb = centroids[3 * b + axis];
+                       return ca < cb || (ca == cb && a < b);
+                     });
+    split(tris, begin, mid);
+    split(tris, mid, end);
+  }
+};
+
+}  // namespace
+
+std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size_t vertex_count,
+                                                    const uint32_t* indices, size_t index_count,
+                                                    size_t max_triangles) {
+  if (max_triangles == 0) throw std::invalid_argument("clusterTriangles: max_triangles is 0");
+  if (index_count % 3) throw std::invalid_argument("clusterTriangles: not a triangle list");
+  size_t n = index_count / 3;
+  std::vector<std::vector<uint32_t>> out;
+  if (n == 0) return out;
+  std::vector<float> centroids(3 * n);
+  for (size_t t = 0; t < n; ++t)
+    for (int c = 0; c < 3; ++c) {
+      uint32_t v = indices[3 * t + c];
+      if (v >= vertex_count) throw std::invalid_argument("clusterTriangles: index out of range");
+      for (int k = 0; k < 3; ++k) centroids[3 * t + k] += positions[3 * size_t(v) + k];
+    }
+  std::vector<uint32_t> tris(n);
+  for (size_t t = 0; t < n; ++t) tris[t] = uint32_t(t);
+  Splitter s{centroids, max_triangles, &out};
+  s.split(tris, 0, n);
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
+  return out;
+}
+
+}  // namespace dmmr

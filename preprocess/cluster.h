@@ -1,0 +1,35 @@
+// Splitting a big mesh into spatially coherent clusters (issue 15), so that
+// culling, the division between clients and the cache work inside it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace dmmr {
+
+// Splits a triangle list into clusters of at most `max_triangles` triangles
+// by a recursive median split of the triangle centroids along the longest
+// axis of their box (the split that gives the tightest cluster boxes; the
+// two halves get triangle counts proportional to the clusters each will
+// hold, so every cluster but the smallest is nearly full).
+//
+// In: `positions`, xyz per vertex (3 * vertex_count floats); `indices`, a
+// triangle list (index_count a multiple of 3) whose entries are all below
+// vertex_count; max_triangles >= 1.
+// Out: clusters of triangle numbers (triangle t is indices[3t..3t+2]).
+// Every triangle is in exactly one cluster; no cluster is empty or holds
+// more than max_triangles; each cluster lists its triangles in ascending
+// order (their original relative order), and clusters are ordered by their
+// first triangle, so drawing the clusters in order draws a mesh whose
+// triangles were already spatially grouped in its original order. A mesh of
+// at most max_triangles triangles is one cluster; there are always exactly
+// ceil(triangles / max_triangles) clusters. Deterministic: ties in
+// centroid order break by triangle number. Throws std::invalid_argument when
+// max_triangles is 0, index_count is not a multiple of 3, or an index is
+// out of range.
+std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size_t vertex_count,
+                                                    const uint32_t* indices, size_t index_count,
+                                                    size_t max_triangles);
+
+}  // namespace dmmr
