@@ -82,9 +82,11 @@ def main(argv=None):
     scenes = runner.scenes()
     confs = runner.configurations()
     print(f"dmmr-bench: suite {suite_path.stem}, scale {a.scale}: {len(scenes)} scenes x "
-          f"(reference + osg-occlusion + {len(confs)} dmmr-render runs), {cfg.get('width')}x{cfg.get('height')}, "
+          f"(reference{' + osg-occlusion' if runner.osg_baseline else ''} + {len(confs)} dmmr-render runs), "
+          f"{cfg.get('width')}x{cfg.get('height')}, "
           f"tools {bin_dir}, output {out} (log: {out / 'bench.log'})", flush=True)
     analysis.LINK_GBPS = float(runner.run_cfg.get("link_gbps", 1.0))
+    load_start = os.getloadavg()  # the report says how busy the (shared) machine was
     t0 = time.monotonic()
     progress = Progress(runner.total_steps())
     results = []
@@ -111,6 +113,15 @@ def main(argv=None):
                 **runner.osg},
         "link_gbps": analysis.LINK_GBPS,
         "cost": cost,
+        "report": suite.get("report"),  # "scaling": the scaling section and the targets' checklist
+        "targets": suite.get("targets", {}),
+        "osg_baseline": runner.osg_baseline,
+        # how the dmmr-render runs were launched, for the report's measurement method
+        "render_lp_num_threads": runner.render_env.get("LP_NUM_THREADS"),
+        "mpirun": " ".join(runner.render_mpi),
+        "cpus": os.cpu_count(),
+        "load_average_start": [round(x, 2) for x in load_start],
+        "load_average_end": [round(x, 2) for x in os.getloadavg()],
         "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (the client's own work "
                               "+ bytes_sent at link_gbps); mean over frames 1..; a client's work is its "
                               + analysis.COST_DEFINITIONS[cost],

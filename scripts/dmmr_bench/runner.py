@@ -74,6 +74,10 @@ class Runner:
         self.render_extra = ["--stage-turns", str(self.out / "stage-turns.lock")] if cost == "turns" else []
         self.timings = {}  # label -> wall seconds
         self.osg = self.osg_settings()  # checked before any run
+        # the OpenSceneGraph baseline: on unless the scale (else the suite's
+        # [run]) says osg_baseline = false; at a large scale it costs about a
+        # reference run and a scaling suite uses none of its figures
+        self.osg_baseline = bool(self.cfg.get("osg_baseline", self.run_cfg.get("osg_baseline", True)))
 
     # --- plan -------------------------------------------------------------
     def configurations(self):
@@ -96,7 +100,7 @@ class Runner:
 
     def total_steps(self):
         # generate, preprocess, reference, OSG baseline, (render, compare)*
-        per_scene = 2 + 1 + 1 + 2 * len(self.configurations())
+        per_scene = 2 + 1 + int(self.osg_baseline) + 2 * len(self.configurations())
         return per_scene * len(self.scenes())
 
     # --- scenes -----------------------------------------------------------
@@ -180,7 +184,9 @@ class Runner:
             self.timings[f"{name}/reference"] = dt
             progress.step(f"{name}: dmmr-reference (brute force) in {dt:.1f} s")
         osg_dir, osg_csv = rd / OSG_LABEL, rd / f"{OSG_LABEL}.csv"
-        if self.resume and osg_csv.exists():
+        if not self.osg_baseline:
+            osg_csv = None  # not run: the report says so (a CSV left from an earlier run is not used)
+        elif self.resume and osg_csv.exists():
             progress.step(f"{name}: {OSG_TOOL} reused")
         else:
             self._fresh(osg_dir, osg_csv)
@@ -208,4 +214,4 @@ class Runner:
                      "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
             progress.step(f"{name}: {label} compared with the reference")
         return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd),
-                "osg_csv": str(osg_csv)}
+                "osg_csv": str(osg_csv) if osg_csv else None}
