@@ -201,7 +201,9 @@ def method_section(meta):
         "- **Derived frame time:** per frame, the server's culling and division plus, for the slowest client, its "
         f"cost plus the transfer of its compressed sub-frame over a nominal {meta.get('link_gbps', 1.0):g} Gbit/s "
         "link (one machine per client, no overlap between frames; hand-over waits left out); the mean over frames "
-        "1.. (frame 0 fills the caches). **Efficiency** is tau_1 / (S tau_S) and **speed-up** tau_1 / tau_S, "
+        "1.. (frame 0 fills the caches). The server's culling and division are wall times (the CSV has no server "
+        "CPU time), so with more processes than cores they include waiting for a core. "
+        "**Efficiency** is tau_1 / (S tau_S) and **speed-up** tau_1 / tau_S, "
         "both over derived times of the same scene. **max/mean** is, per frame, the slowest client's cost over "
         "the mean client cost, median over frames.",
         "- **Work inflation:** the sum over clients of each figure (means per frame over frames 1..) divided by "
@@ -334,7 +336,11 @@ def scaling_section(meta, scenes, checks):
           "client did alone (objects straddling regions tested and drawn by each client whose region they "
           "touch, occluders drawn by every client, per-client fixed costs).", "", inflation_table(scenes)]
     if any(c["met"] is False for c in checks):
-        md += ["### Where the time goes (a target is not met)", ""]
+        md += ["### Where the time goes (a target is not met)", "",
+               "The 1-client run's client first, then each client of the largest run. With fused stages (the "
+               "default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
+               "CPU is 0; `pass` and `send` are hand-over waits, and under oversubscription every wall column "
+               "includes waiting for a core.", ""]
         for s in scenes:
             md += [breakdown_table(s), ""]
     return "\n".join(md) + "\n"
@@ -425,6 +431,8 @@ def plots(scenes, dest, window):
             ax.set_xlabel("clients")
             ax.legend(fontsize=7)
         a1.set_yscale("log", base=2)
+        a1.set_yticks(ns)
+        a1.set_yticklabels([str(n) for n in ns])
         a1.set_title("derived speed-up over 1 client")
         a2.set_title("work summed over clients / 1 client")
         save(fig, "scaling.png")
