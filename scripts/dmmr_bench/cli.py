@@ -116,6 +116,7 @@ def main(argv=None):
         "report": suite.get("report"),  # "scaling": the scaling section and the targets' checklist
         "targets": suite.get("targets", {}),
         "osg_baseline": runner.osg_baseline,
+        "reference_stride": runner.reference_stride(),  # the reference rendered (and compared) every k-th frame
         # how the dmmr-render runs were launched, for the report's measurement method
         "render_lp_num_threads": runner.render_env.get("LP_NUM_THREADS"),
         "mpirun": " ".join(runner.render_mpi),
