@@ -240,14 +240,14 @@ def check_targets(meta, scenes):
         met = bool(have) and len(have) == len(vals) and all(v >= goal for _, v in have)
         out.append({"target": f"derived efficiency at least {goal:g} with {n} clients",
                     "met": met if have else None,
-                    "detail": ", ".join(f"{sc} {f(v, '{:.2f}')}" for sc, v in vals)})
+                    "detail": ", ".join(f"{sc} {f(v, '{:.3f}')}" for sc, v in vals)})
     if "speedup_4" in t:
         goal = t["speedup_4"]
         vals = [(s["scene"], (run_of(s, 4) or {}).get("derived_speedup_vs_1_client")) for s in scenes]
         have = [(sc, v) for sc, v in vals if v is not None]
         out.append({"target": f"4 clients at least {goal:g}x faster than 1 (derived)",
                     "met": (len(have) == len(vals) and all(v >= goal for _, v in have)) if have else None,
-                    "detail": ", ".join(f"{sc} {f(v, '{:.2f}')}x" for sc, v in vals)})
+                    "detail": ", ".join(f"{sc} {f(v, '{:.3f}')}x" for sc, v in vals)})
     if "max_over_mean" in t:
         goal = t["max_over_mean"]
         worst = []
