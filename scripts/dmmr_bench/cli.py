@@ -106,6 +106,7 @@ def main(argv=None):
         "command": "scripts/dmmr-bench " + " ".join(shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])),
         "machine": machine(), "width": cfg.get("width"), "height": cfg.get("height"), "backend": a.backend,
         "lp_num_threads": runner.run_cfg.get("lp_num_threads"), "wall_s": wall,
+        "resumed": bool(a.resume),  # wall_s then counts only what was rerun
         "configurations": [{"label": l, "clients": n, "options": x} for l, n, x in confs],
         "run_wall_s": runner.timings,
         "osg": {"tool": "dmmr-osgviewer", "label": "osg-occlusion", "backend": "osmesa",
@@ -138,7 +139,7 @@ def main(argv=None):
         # they ran, not this rebuild's
         import json
         prev = json.loads(old.read_text())
-        for k in ("command", "machine", "wall_s", "run_wall_s", "load_average_start", "load_average_end", "git"):
+        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end", "git"):
             if k in prev:
                 meta[k] = prev[k]
     frames = max(len(s["reference"]["frame_ms_series"]) for s in results)

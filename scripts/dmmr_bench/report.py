@@ -540,7 +540,8 @@ def write(report_dir, meta, scenes, window):
           f"Command: `{meta['command']}`  ", f"Machine: {meta['machine']}  ",
           f"Images {meta['width']}x{meta['height']}, backend {meta['backend']}, "
           f"{lp_line(meta)}; "
-          f"wall time of the whole suite {meta['wall_s']:.0f} s.", ""]
+          f"wall time of the whole suite {meta['wall_s']:.0f} s"
+          f"{' (resumed: runs reused from an earlier invocation not counted)' if meta.get('resumed') else ''}.", ""]
     if scaling:
         md += [method_section(meta)]
     md += ["**Measured** times are wall-clock on this machine, where the server and all clients share its cores: "

@@ -172,12 +172,19 @@ class Runner:
             sys.exit("dmmr-bench: reference_stride must be at least 1")
         return k
 
+    @staticmethod
+    def strided_lines(path, k):
+        return [l for l in Path(path).read_text().splitlines() if l.strip()][::k]
+
+    @staticmethod
+    def csv_rows(path):
+        return max(0, sum(1 for l in Path(path).read_text().splitlines() if l.strip()) - 1)
+
     def strided_path(self, path, k):
         if k == 1:
             return path
-        lines = [l for l in Path(path).read_text().splitlines() if l.strip()]
         sub = Path(path).with_suffix(f".every{k}.path")
-        sub.write_text("\n".join(lines[::k]) + "\n")
+        sub.write_text("\n".join(self.strided_lines(path, k)) + "\n")
         return sub
 
     def frames_like_reference(self, out_dir, k):
@@ -191,6 +198,11 @@ class Runner:
         for j, src in enumerate(frames[::k]):
             (d / f"frame_{j:06d}.png").symlink_to(src.resolve())
         return d
+
+    def compare(self, ref_dir, out_dir, stride, cmp_csv):
+        # thresholds are checked by the report (conservative runs must be identical)
+        run_cmd([self.bin / "dmmr-compare", ref_dir, self.frames_like_reference(out_dir, stride), "--csv", cmp_csv,
+                 "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
 
     def _fresh(self, *paths):
         for p in paths:
@@ -208,10 +220,12 @@ class Runner:
         ref_dir, ref_csv = rd / "reference", rd / "reference.csv"
         stride = self.reference_stride()
         ref_path = self.strided_path(path, stride)
-        if self.resume and ref_csv.exists():
+        want = len(self.strided_lines(path, stride))
+        if self.resume and ref_csv.exists() and self.csv_rows(ref_csv) == want:
             progress.step(f"{name}: dmmr-reference reused")
         else:
-            self._fresh(ref_dir, ref_csv)
+            # a new reference (or one of another stride): every run is compared with it again
+            self._fresh(ref_dir, ref_csv, *(rd / f"{label}.cmp.csv" for label, _, _ in self.configurations()))
             dt = run_cmd([self.bin / "dmmr-reference", *self.common_opts(scene_dir, ref_path, ref_dir, ref_csv)],
                          self.log, env=self.env)
             self.timings[f"{name}/reference"] = dt
@@ -229,9 +243,13 @@ class Runner:
         for label, n, extra in self.configurations():
             out_dir, csv = rd / label, rd / f"{label}.csv"
             cmp_csv = rd / f"{label}.cmp.csv"
-            if self.resume and csv.exists() and cmp_csv.exists():
+            if self.resume and csv.exists() and out_dir.is_dir():
                 progress.step(f"{name}: {label} reused")
-                progress.step(f"{name}: {label} comparison reused")
+                if cmp_csv.exists():
+                    progress.step(f"{name}: {label} comparison reused")
+                else:  # e.g. the reference was rerun on more frames: compare the frames kept
+                    self.compare(ref_dir, out_dir, stride, cmp_csv)
+                    progress.step(f"{name}: {label} compared with the reference")
                 continue
             self._fresh(out_dir, csv, cmp_csv)
             cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
@@ -242,9 +260,7 @@ class Runner:
             self.timings[f"{name}/{label}"] = dt
             progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
                           f"{' ' + ' '.join(extra) if extra else ''} in {dt:.1f} s")
-            # thresholds are checked by the report (conservative runs must be identical)
-            run_cmd([self.bin / "dmmr-compare", ref_dir, self.frames_like_reference(out_dir, stride), "--csv", cmp_csv,
-                     "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
+            self.compare(ref_dir, out_dir, stride, cmp_csv)
             progress.step(f"{name}: {label} compared with the reference")
         return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd), "reference_stride": stride,
                 "osg_csv": str(osg_csv) if osg_csv else None}
