@@ -87,6 +87,13 @@ def main(argv=None):
           f"tools {bin_dir}, output {out} (log: {out / 'bench.log'})", flush=True)
     analysis.LINK_GBPS = float(runner.run_cfg.get("link_gbps", 1.0))
     load_start = os.getloadavg()  # the report says how busy the (shared) machine was
+    prev_summary = out / "report" / "summary.json"
+    load_earlier = None
+    if a.resume and not a.report_only and prev_summary.exists():
+        # runs reused from the earlier invocation ran under its load, not this one's
+        import json
+        prev = json.loads(prev_summary.read_text())
+        load_earlier = prev.get("load_average_earlier") or [prev.get("load_average_start"), prev.get("load_average_end")]
     t0 = time.monotonic()
     progress = Progress(runner.total_steps())
     results = []
@@ -124,6 +131,7 @@ def main(argv=None):
         "cpus": os.cpu_count(),
         "load_average_start": [round(x, 2) for x in load_start],
         "load_average_end": [round(x, 2) for x in os.getloadavg()],
+        "load_average_earlier": load_earlier,
         "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (the client's own work "
                               "+ bytes_sent at link_gbps); mean over frames 1..; a client's work is its "
                               + analysis.COST_DEFINITIONS[cost],
@@ -139,7 +147,8 @@ def main(argv=None):
         # they ran, not this rebuild's
         import json
         prev = json.loads(old.read_text())
-        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end", "git"):
+        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end",
+                  "load_average_earlier", "git"):
             if k in prev:
                 meta[k] = prev[k]
     frames = max(len(s["reference"]["frame_ms_series"]) for s in results)

@@ -175,6 +175,11 @@ def method_section(meta):
     la0, la1 = meta.get("load_average_start"), meta.get("load_average_end")
     load = (f"load average (1, 5, 15 min) {', '.join(f'{x:.2f}' for x in la0)} at the start and "
             f"{', '.join(f'{x:.2f}' for x in la1)} at the end" if la0 and la1 else "load average not recorded")
+    earlier = meta.get("load_average_earlier")
+    if earlier and all(earlier):
+        load += (" of this (resumed) invocation; the runs it reused ran in an earlier one: load average "
+                 f"{', '.join(f'{x:.2f}' for x in earlier[0])} at its start and "
+                 f"{', '.join(f'{x:.2f}' for x in earlier[1])} at its end")
     cost_line = {
         "cpu": "a client's cost in a frame is the CPU time of its two stage threads (`cN_vis_cpu_ms + "
                "cN_render_cpu_ms`, `CLOCK_THREAD_CPUTIME_ID`). CPU time does not count time spent waiting for a "
