@@ -1,5 +1,6 @@
 """dmmr-bench SUITE [--scale small|medium|large] [--out DIR] [--bin DIR]"""
 import argparse
+import json
 import os
 import platform
 import shlex
@@ -91,7 +92,6 @@ def main(argv=None):
     load_earlier = None
     if a.resume and not a.report_only and prev_summary.exists():
         # runs reused from the earlier invocation ran under its load, not this one's
-        import json
         prev = json.loads(prev_summary.read_text())
         load_earlier = prev.get("load_average_earlier") or [prev.get("load_average_start"), prev.get("load_average_end")]
     t0 = time.monotonic()
@@ -145,7 +145,6 @@ def main(argv=None):
     if a.report_only and old.exists():
         # a rebuilt report describes the runs it reads: keep when, how long and on how busy a machine
         # they ran, not this rebuild's
-        import json
         prev = json.loads(old.read_text())
         for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end",
                   "load_average_earlier", "git"):

@@ -75,8 +75,8 @@ class Runner:
         self.timings = {}  # label -> wall seconds
         self.osg = self.osg_settings()  # checked before any run
         # the OpenSceneGraph baseline: on unless the scale (else the suite's
-        # [run]) says osg_baseline = false; at a large scale it costs about a
-        # reference run and a scaling suite uses none of its figures
+        # [run]) says osg_baseline = false; a scaling suite uses none of its
+        # figures, and at a large scale it is one more single-node render
         self.osg_baseline = bool(self.cfg.get("osg_baseline", self.run_cfg.get("osg_baseline", True)))
 
     # --- plan -------------------------------------------------------------
@@ -162,8 +162,8 @@ class Runner:
         return opts
 
     # --- a reference on every k-th frame ------------------------------------
-    # Brute force at the paper's scale costs tens of seconds a frame, so a scale
-    # may set reference_stride = k: the reference renders control points 0, k,
+    # Brute force costs seconds a frame at the paper's scale (4 to 12 s on 2
+    # cores), so a scale may set reference_stride = k: the reference renders control points 0, k,
     # 2k, ... (one frame per control point, the same cameras), and each run's
     # frames 0, k, 2k, ... are compared with them, index for index.
     def reference_stride(self):
