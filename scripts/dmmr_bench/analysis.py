@@ -226,6 +226,23 @@ def render_stats(path, clients):
     return out
 
 
+# The work a run does, summed over its clients (means over frames 1..): what
+# the scaling report divides by the 1-client run's to show work inflation.
+# key -> (label, per-client figure from render_stats' per_client entries)
+WORK_SUMS = {
+    "queried": ("objects tested", lambda c: c["queried_mean"]),
+    "visible": ("objects drawn", lambda c: c["visible_mean"]),
+    "triangles": ("triangles drawn", lambda c: c["triangles_mean"]),
+    "occluders": ("occluders drawn (objects)", lambda c: c["occluders_mean"]),
+    "pixels": ("pixels read back", lambda c: c["bytes_raw_mean"] / 3),  # RGB sub-frames
+    "cpu_ms": ("client CPU ms", lambda c: c["vis_cpu_ms"] + c["render_cpu_ms"]),
+}
+
+
+def work_sums(r):
+    return {k: sum(fn(c) for c in r["per_client"]) for k, (_, fn) in WORK_SUMS.items()}
+
+
 def scene_counts(scene_dir):
     try:
         m = json.loads((Path(scene_dir) / "manifest.json").read_text())
@@ -267,4 +284,11 @@ def analyse_scene(name, info, configurations):
         if base and r["plain"] and r["derived_frame_ms_mean"] > 0:
             r["derived_efficiency"] = base["derived_frame_ms_mean"] / (r["clients"] * r["derived_frame_ms_mean"])
             r["derived_speedup_vs_1_client"] = base["derived_frame_ms_mean"] / r["derived_frame_ms_mean"]
+    # work inflation: each run's work summed over clients against the 1-client run's
+    for r in res["runs"].values():
+        r["work_sums"] = work_sums(r)
+    for r in res["runs"].values():
+        if base and r["plain"]:
+            r["inflation"] = {k: (v / base["work_sums"][k] if base["work_sums"][k] > 0 else None)
+                              for k, v in r["work_sums"].items()}
     return res

@@ -1,5 +1,6 @@
 """dmmr-bench SUITE [--scale small|medium|large] [--out DIR] [--bin DIR]"""
 import argparse
+import json
 import os
 import platform
 import shlex
@@ -82,9 +83,17 @@ def main(argv=None):
     scenes = runner.scenes()
     confs = runner.configurations()
     print(f"dmmr-bench: suite {suite_path.stem}, scale {a.scale}: {len(scenes)} scenes x "
-          f"(reference + osg-occlusion + {len(confs)} dmmr-render runs), {cfg.get('width')}x{cfg.get('height')}, "
+          f"(reference{' + osg-occlusion' if runner.osg_baseline else ''} + {len(confs)} dmmr-render runs), "
+          f"{cfg.get('width')}x{cfg.get('height')}, "
           f"tools {bin_dir}, output {out} (log: {out / 'bench.log'})", flush=True)
     analysis.LINK_GBPS = float(runner.run_cfg.get("link_gbps", 1.0))
+    load_start = os.getloadavg()  # the report says how busy the (shared) machine was
+    prev_summary = out / "report" / "summary.json"
+    load_earlier = None
+    if a.resume and not a.report_only and prev_summary.exists():
+        # runs reused from the earlier invocation ran under its load, not this one's
+        prev = json.loads(prev_summary.read_text())
+        load_earlier = prev.get("load_average_earlier") or [prev.get("load_average_start"), prev.get("load_average_end")]
     t0 = time.monotonic()
     progress = Progress(runner.total_steps())
     results = []
@@ -104,6 +113,7 @@ def main(argv=None):
         "command": "scripts/dmmr-bench " + " ".join(shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:])),
         "machine": machine(), "width": cfg.get("width"), "height": cfg.get("height"), "backend": a.backend,
         "lp_num_threads": runner.run_cfg.get("lp_num_threads"), "wall_s": wall,
+        "resumed": bool(a.resume),  # wall_s then counts only what was rerun
         "configurations": [{"label": l, "clients": n, "options": x} for l, n, x in confs],
         "run_wall_s": runner.timings,
         "osg": {"tool": "dmmr-osgviewer", "label": "osg-occlusion", "backend": "osmesa",
@@ -111,6 +121,17 @@ def main(argv=None):
                 **runner.osg},
         "link_gbps": analysis.LINK_GBPS,
         "cost": cost,
+        "report": suite.get("report"),  # "scaling": the scaling section and the targets' checklist
+        "targets": suite.get("targets", {}),
+        "osg_baseline": runner.osg_baseline,
+        "reference_stride": runner.reference_stride(),  # the reference rendered (and compared) every k-th frame
+        # how the dmmr-render runs were launched, for the report's measurement method
+        "render_lp_num_threads": runner.render_env.get("LP_NUM_THREADS"),
+        "mpirun": " ".join(runner.render_mpi),
+        "cpus": os.cpu_count(),
+        "load_average_start": [round(x, 2) for x in load_start],
+        "load_average_end": [round(x, 2) for x in os.getloadavg()],
+        "load_average_earlier": load_earlier,
         "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (the client's own work "
                               "+ bytes_sent at link_gbps); mean over frames 1..; a client's work is its "
                               + analysis.COST_DEFINITIONS[cost],
@@ -120,6 +141,15 @@ def main(argv=None):
                                      capture_output=True, text=True).stdout.strip()
     except OSError:
         pass
+    old = out / "report" / "summary.json"
+    if a.report_only and old.exists():
+        # a rebuilt report describes the runs it reads: keep when, how long and on how busy a machine
+        # they ran, not this rebuild's
+        prev = json.loads(old.read_text())
+        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end",
+                  "load_average_earlier", "git"):
+            if k in prev:
+                meta[k] = prev[k]
     frames = max(len(s["reference"]["frame_ms_series"]) for s in results)
     window = max(1, min(10, frames // 8))
     ok = report.write(out / "report", meta, results, window)

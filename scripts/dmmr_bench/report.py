@@ -158,6 +158,211 @@ def verdict(scenes):
     return "\n".join(out) + "\n"
 
 
+# --- the scaling suite (issue 16) ----------------------------------------------------
+def sweep_runs(s):
+    return [r for r in s["runs"].values() if not r["plain"]]
+
+
+def scaling_runs(s):
+    """The plain runs of a scene by client count."""
+    return sorted((r for _, r in plain_runs(s)), key=lambda r: r["clients"])
+
+
+def method_section(meta):
+    cost = meta.get("cost", "wall")
+    n_max = max((c["clients"] for c in meta.get("configurations", [])), default=1)
+    lp = meta.get("render_lp_num_threads")
+    la0, la1 = meta.get("load_average_start"), meta.get("load_average_end")
+    load = (f"load average (1, 5, 15 min) {', '.join(f'{x:.2f}' for x in la0)} at the start and "
+            f"{', '.join(f'{x:.2f}' for x in la1)} at the end" if la0 and la1 else "load average not recorded")
+    earlier = meta.get("load_average_earlier")
+    if earlier and all(earlier):
+        load += (" of this (resumed) invocation; the runs it reused ran in an earlier one: load average "
+                 f"{', '.join(f'{x:.2f}' for x in earlier[0])} at its start and "
+                 f"{', '.join(f'{x:.2f}' for x in earlier[1])} at its end")
+    cost_line = {
+        "cpu": "a client's cost in a frame is the CPU time of its two stage threads (`cN_vis_cpu_ms + "
+               "cN_render_cpu_ms`, `CLOCK_THREAD_CPUTIME_ID`). CPU time does not count time spent waiting for a "
+               "core, so it holds with more processes than cores; what sharing still changes (caches, memory "
+               "bandwidth) is not removed.",
+        "wall": "a client's cost in a frame is the wall time of its working stages (prepare, retrieve, load, "
+                "render, read back, compress), waiting for a core included: with more processes than cores this "
+                "measures contention as much as work.",
+        "turns": "a client's cost in a frame is the wall time of its working stages, taken with `--stage-turns` "
+                 "(one GL stage at a time on the machine).",
+    }[cost]
+    return "\n".join([
+        "## Measurement method", "",
+        f"- **Cost (`--cost {cost}`):** {cost_line}",
+        f"- **LP_NUM_THREADS:** dmmr-render runs with `LP_NUM_THREADS={lp if lp is not None else 'unset'}`"
+        + (" (llvmpipe rasterises on the calling stage thread, so the stage threads' CPU time is the whole GL "
+           "cost)" if lp == "0" else "")
+        + f"; dmmr-reference{' and dmmr-osgviewer' if meta.get('osg_baseline', True) else ''} with "
+          f"`LP_NUM_THREADS={meta.get('lp_num_threads') or 'unset (llvmpipe default)'}`.",
+        f"- **Launch and binding:** `{meta.get('mpirun', 'mpirun')} -np N+1 dmmr-render ...`: rank 0 is the "
+        f"server, ranks 1..N the clients, no process bound to a core. With up to {n_max} clients that is "
+        f"{n_max + 1} processes (each client with two GL stage threads) on {meta.get('cpus', '?')} cores: "
+        "**oversubscribed**, so measured wall times are not cluster times.",
+        "- **Derived frame time:** per frame, the server's culling and division plus, for the slowest client, its "
+        f"cost plus the transfer of its compressed sub-frame over a nominal {meta.get('link_gbps', 1.0):g} Gbit/s "
+        "link (one machine per client, no overlap between frames; hand-over waits left out); the mean over frames "
+        "1.. (frame 0 fills the caches). The server's culling and division are wall times (the CSV has no server "
+        "CPU time), so with more processes than cores they include waiting for a core. "
+        "**Efficiency** is tau_1 / (S tau_S) and **speed-up** tau_1 / tau_S, "
+        "both over derived times of the same scene. **max/mean** is, per frame, the slowest client's cost over "
+        "the mean client cost, median over frames.",
+        "- **Work inflation:** the sum over clients of each figure (means per frame over frames 1..) divided by "
+        "the 1-client run's: objects queried/tested (`cN_queried`), objects drawn (`cN_visible`), triangles "
+        "drawn (`cN_triangles`), occluders drawn (`cN_occluders`, objects: the CSV has no occluder triangle "
+        "count), pixels read back (`cN_bytes_raw / 3`) and client CPU time (`cN_vis_cpu_ms + cN_render_cpu_ms`).",
+        f"- **Machine while measuring:** {load}, on {meta.get('cpus', '?')} cores "
+        "(other work may have shared the machine).",
+        accuracy_line(meta), ""])
+
+
+def accuracy_line(meta):
+    k = int(meta.get("reference_stride", 1) or 1)
+    if k == 1:
+        return ("- **Accuracy:** every dmmr-render frame is compared with dmmr-reference's frame of the same index "
+                "(same walkthrough, same frame count).")
+    return (f"- **Accuracy:** brute force is slow at this scale, so dmmr-reference renders one control point in {k} "
+            f"of the walkthrough (frames 0, {k}, {2 * k}, ...: the same cameras) and each dmmr-render run's "
+            "frames of those indices are compared with it, frame for frame; \"identical frames\" counts those. "
+            "The \"vs reference\" ratios therefore compare means over different frames of the same path.")
+
+
+def check_targets(meta, scenes):
+    """The issue's targets, each met or not from the figures: [{target, met, detail}]."""
+    t = meta.get("targets") or {}
+    out = []
+
+    def run_of(s, n):
+        return next((r for r in scaling_runs(s) if r["clients"] == n), None)
+
+    for n, goal in sorted(((int(k), v) for k, v in t.get("efficiency", {}).items())):
+        vals = [(s["scene"], (run_of(s, n) or {}).get("derived_efficiency")) for s in scenes]
+        have = [(sc, v) for sc, v in vals if v is not None]
+        met = bool(have) and len(have) == len(vals) and all(v >= goal for _, v in have)
+        out.append({"target": f"derived efficiency at least {goal:g} with {n} clients, every scene",
+                    "met": met if have else None,
+                    "detail": f"met on {sum(1 for _, v in have if v >= goal)} of {len(vals)} scenes: "
+                              + ", ".join(f"{sc} {f(v, '{:.3f}')}" for sc, v in vals)})
+    if "speedup_4" in t:
+        goal = t["speedup_4"]
+        vals = [(s["scene"], (run_of(s, 4) or {}).get("derived_speedup_vs_1_client")) for s in scenes]
+        have = [(sc, v) for sc, v in vals if v is not None]
+        out.append({"target": f"4 clients at least {goal:g}x faster than 1 (derived), every scene",
+                    "met": (len(have) == len(vals) and all(v >= goal for _, v in have)) if have else None,
+                    "detail": f"met on {sum(1 for _, v in have if v >= goal)} of {len(vals)} scenes: "
+                              + ", ".join(f"{sc} {f(v, '{:.3f}')}x" for sc, v in vals)})
+    if "max_over_mean" in t:
+        goal = t["max_over_mean"]
+        worst = []
+        for s in scenes:
+            multi = [r for r in scaling_runs(s) if r["clients"] > 1]
+            if multi:
+                w = max(multi, key=lambda r: r["client_max_over_mean_median"])
+                worst.append((s["scene"], w["clients"], w["client_max_over_mean_median"]))
+        out.append({"target": f"median max/mean client time at most {goal:g} (every run with 2 or more clients)",
+                    "met": all(v <= goal for _, _, v in worst) if worst else None,
+                    "detail": "worst per scene: " + ", ".join(f"{sc} {v:.2f} ({n} clients)" for sc, n, v in worst)})
+    frames = identical = 0
+    for s in scenes:
+        for r in s["runs"].values():
+            if r["conservative"]:
+                frames += r["accuracy"]["frames"]
+                identical += r["accuracy"]["identical_frames"]
+    counts_ok = all(r["accuracy"]["frames"] == s["reference"]["frames"]
+                    for s in scenes for r in s["runs"].values() if r["conservative"])
+    out.append({"target": "every conservative frame identical to the reference",
+                "met": frames > 0 and identical == frames and counts_ok,
+                "detail": f"{identical} of {frames} frames identical"
+                          + ("" if counts_ok else "; some run has fewer frames compared than the reference")})
+    return out
+
+
+def targets_checklist(checks):
+    mark = {True: "[x] **met**", False: "[ ] **not met**", None: "[ ] **not measured**"}
+    return "\n".join(f"- {mark[c['met']]}: {c['target']} ({c['detail']})" for c in checks) + "\n"
+
+
+def scaling_table(scenes):
+    lines = ["| scene | clients | derived ms | efficiency | speed-up vs 1 client | max/mean client (median) | "
+             "derived from wall (for comparison) | measured frame ms (oversubscribed) | identical frames |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for s in scenes:
+        for r in scaling_runs(s):
+            a = r["accuracy"]
+            lines.append(f"| {s['scene']} | {r['clients']} | {f(r['derived_frame_ms_mean'])} | "
+                         f"{f(r.get('derived_efficiency'), '{:.2f}')} | "
+                         f"{f(r.get('derived_speedup_vs_1_client'), '{:.2f}')}x | "
+                         f"{f(r['client_max_over_mean_median'], '{:.2f}')} | {f(r['derived_wall_frame_ms_mean'])} | "
+                         f"{f(r['frame_ms_mean'])} | {a['identical_frames']}/{a['frames']} |")
+    return "\n".join(lines) + "\n"
+
+
+def inflation_table(scenes):
+    from .analysis import WORK_SUMS
+    keys = list(WORK_SUMS)
+    lines = ["| scene | clients | " + " | ".join(WORK_SUMS[k][0] for k in keys) + " |",
+             "|---|---|" + "---|" * len(keys)]
+    fmt = {"cpu_ms": "{:,.1f}"}
+    for s in scenes:
+        for r in scaling_runs(s):
+            inf = r.get("inflation") or {}
+            cells = [f"{f(r['work_sums'][k], fmt.get(k, '{:,.0f}'))} ({f(inf.get(k), '{:.2f}')}x)" for k in keys]
+            lines.append(f"| {s['scene']} | {r['clients']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+BREAKDOWN_WALL = ["prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms", "readback_ms", "compress_ms",
+                  "send_ms"]
+
+
+def breakdown_table(s):
+    """Client by client, stage by stage, for the scene's largest client count (the 1-client run's client first)."""
+    runs = scaling_runs(s)
+    if not runs:
+        return ""
+    big, one = runs[-1], runs[0]
+    head = ("| run | client | " + " | ".join(x[:-3] for x in BREAKDOWN_WALL) +
+            " | vis CPU | render CPU | cost used | objects tested | objects drawn | triangles | pixels read back |")
+    lines = [f"#### {s['scene']}: {big['clients']} clients, per client and stage (ms per frame, means over frames "
+             f"1..; stage columns are wall times, waiting included; CPU columns are the stage threads' CPU time)",
+             "", head, "|---|---|" + "---|" * (len(BREAKDOWN_WALL) + 7)]
+    rows = [("1 client", 1, one["per_client"][0])] if one is not big else []
+    rows += [(f"{big['clients']} clients", k + 1, c) for k, c in enumerate(big["per_client"])]
+    for label, k, c in rows:
+        lines.append(f"| {label} | c{k} | " + " | ".join(f(c[x]) for x in BREAKDOWN_WALL) +
+                     f" | {f(c['vis_cpu_ms'])} | {f(c['render_cpu_ms'])} | {f(c['cost_ms'])} | "
+                     f"{c['queried_mean']:,.0f} | {c['visible_mean']:,.0f} | {c['triangles_mean']:,.0f} | "
+                     f"{c['bytes_raw_mean'] / 3:,.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def scaling_section(meta, scenes, checks):
+    md = ["## Scaling", "",
+          f"### Targets (issue 16), from the figures below (scale `{meta['scale']}`)", "",
+          targets_checklist(checks),
+          "### Frame time, efficiency, speed-up and balance", "",
+          f"Derived times by `--cost {meta.get('cost', 'wall')}`; efficiency tau_1 / (S tau_S) and speed-up "
+          "against the 1-client run of the same scene.", "", scaling_table(scenes),
+          "### Work inflation against 1 client", "",
+          "Each cell: the run's figure summed over its clients, per frame (mean over frames 1..), and in "
+          "brackets that sum over the 1-client run's. Above 1, the clients together do more work than one "
+          "client did alone (objects straddling regions tested and drawn by each client whose region they "
+          "touch, occluders drawn by every client, per-client fixed costs).", "", inflation_table(scenes)]
+    if any(c["met"] is False for c in checks):
+        md += ["### Where the time goes (a target is not met)", "",
+               "The 1-client run's client first, then each client of the largest run. With fused stages (the "
+               "default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
+               "CPU is 0; `pass` and `send` are hand-over waits, and under oversubscription every wall column "
+               "includes waiting for a core.", ""]
+        for s in scenes:
+            md += [breakdown_table(s), ""]
+    return "\n".join(md) + "\n"
+
+
 # --- plots ---------------------------------------------------------------------------
 def smooth(xs, w):
     if w <= 1 or len(xs) < w:
@@ -223,6 +428,34 @@ def plots(scenes, dest, window):
         ax.legend(fontsize=7, ncol=4)
     save(fig, "query_prepare.png")
 
+    if any(len(scaling_runs(s)) > 1 for s in scenes):
+        # speed-up and work inflation against client count, one line per scene
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.8))
+        ns = sorted({r["clients"] for s in scenes for r in scaling_runs(s)})
+        a1.plot(ns, ns, "k:", label="ideal")
+        for s in scenes:
+            runs = [r for r in scaling_runs(s) if r.get("derived_speedup_vs_1_client") is not None]
+            line, = a1.plot([r["clients"] for r in runs], [r["derived_speedup_vs_1_client"] for r in runs], "o-",
+                            label=s["scene"])
+            a2.plot([r["clients"] for r in runs], [r["inflation"]["cpu_ms"] or float("nan") for r in runs], "o-",
+                    color=line.get_color(), label=f"{s['scene']} CPU")
+            a2.plot([r["clients"] for r in runs], [r["inflation"]["triangles"] or float("nan") for r in runs], "x--",
+                    color=line.get_color(), label=f"{s['scene']} triangles")
+        for ax in (a1, a2):
+            ax.set_xscale("log", base=2)
+            ax.set_xticks(ns)
+            ax.set_xticklabels([str(n) for n in ns])
+            ax.set_xlabel("clients")
+            ax.legend(fontsize=7)
+        a1.set_yscale("log", base=2)
+        a1.set_yticks(ns)
+        a1.set_yticklabels([str(n) for n in ns])
+        a1.set_title("derived speed-up over 1 client")
+        a2.set_title("work summed over clients / 1 client")
+        save(fig, "scaling.png")
+
+    if not any(sweep_runs(s) for s in scenes):
+        return made  # no visibility-settings sweep in this suite: no speed-against-error plot
     # speed against error: frame time against PSNR for the visibility settings
     fig, ax = plt.subplots(figsize=(7, 4))
     cap = 0.0
@@ -255,6 +488,9 @@ def plots(scenes, dest, window):
 
 
 def osg_paragraph(meta, scenes):
+    if not meta.get("osg_baseline", True):
+        return ("Baseline not run at this scale (`osg_baseline = false`): OpenSceneGraph's own single-node path "
+                "(osg-occlusion) is left out.")
     if not any(s.get("osg") for s in scenes):
         return "Baseline not in this run: OpenSceneGraph's own single-node path (no osg-occlusion runs found)."
     o = meta.get("osg", {})
@@ -267,6 +503,13 @@ def osg_paragraph(meta, scenes):
             "planes from what it draws. Its frame time is timed as dmmr-reference's (frame to PNG written); its frames "
             "are not compared with the reference (OSG shades with fixed-function lighting). \"vs osg-occlusion\" is "
             "its mean frame time over the configuration's: above 1 the configuration is faster.")
+
+
+def lp_line(meta):
+    lp, rlp = meta.get("lp_num_threads") or "default", meta.get("render_lp_num_threads")
+    if rlp is None or str(rlp) == str(lp):
+        return f"LP_NUM_THREADS={lp} for every run"
+    return f"LP_NUM_THREADS={lp} for the reference runs, {rlp} for dmmr-render (`--cost {meta.get('cost')}`)"
 
 
 def write(report_dir, meta, scenes, window):
@@ -283,6 +526,10 @@ def write(report_dir, meta, scenes, window):
     summary = dict(meta)
     summary["accuracy_ok"] = ok
     summary["plots"] = [f"plots/{m}" for m in made]
+    scaling = meta.get("report") == "scaling"
+    checks = check_targets(meta, scenes) if scaling else None
+    if scaling:
+        summary["targets_check"] = checks
     summary["scenes"] = []
     for s in scenes:
         s2 = json.loads(json.dumps(s, default=str))
@@ -297,9 +544,12 @@ def write(report_dir, meta, scenes, window):
     md = [f"# dmmr-bench: suite `{meta['suite']}`, scale `{meta['scale']}`", "",
           f"Command: `{meta['command']}`  ", f"Machine: {meta['machine']}  ",
           f"Images {meta['width']}x{meta['height']}, backend {meta['backend']}, "
-          f"LP_NUM_THREADS={meta.get('lp_num_threads') or 'default'} for every run; "
-          f"wall time of the whole suite {meta['wall_s']:.0f} s.", "",
-          "**Measured** times are wall-clock on this machine, where the server and all clients share its cores: "
+          f"{lp_line(meta)}; "
+          f"wall time of the whole suite {meta['wall_s']:.0f} s"
+          f"{' (resumed: runs reused from an earlier invocation not counted)' if meta.get('resumed') else ''}.", ""]
+    if scaling:
+        md += [method_section(meta)]
+    md += ["**Measured** times are wall-clock on this machine, where the server and all clients share its cores: "
           "with more clients than cores they slow each other down. **Derived** times are what a cluster with one "
           "machine per client would see, computed per frame from the measured stage times: server culling and "
           "division plus the slowest client's own work (prepare queries, retrieve, load, render, read back, "
@@ -314,16 +564,19 @@ def write(report_dir, meta, scenes, window):
           "## Where dmmr stands", "", verdict(scenes),
           f"Accuracy: every conservative run (query threshold 0) {'matches' if ok else 'does NOT match'} the "
           "reference pixel for pixel" + ("." if ok else ": see the FAIL rows below."), "",
-          osg_paragraph(meta, scenes), "",
-          "## Summary", "", summary_table(scenes),
+          osg_paragraph(meta, scenes), ""]
+    if scaling:
+        md += [scaling_section(meta, scenes, checks)]
+    md += ["## Summary", "", summary_table(scenes),
           "## Stage times (the paper's Tables 1 to 3)", ""]
     for n in sorted({r["clients"] for s in scenes for r in s["runs"].values() if r.get("plain", not r["options"])}):
         md += [table_for_clients(scenes, n), ""]
-    md += ["## Speed against error (visibility settings)", "",
-           "Threshold 0 is the plain run (the default, exact depth-pyramid test); thresholds above 0 are "
-           "hardware occlusion queries (`--visibility queries --stages split --query-threshold T`).", "",
-           sweep_table(scenes), "",
-           "## Plots", ""]
+    if any(sweep_runs(s) for s in scenes):
+        md += ["## Speed against error (visibility settings)", "",
+               "Threshold 0 is the plain run (the default, exact depth-pyramid test); thresholds above 0 are "
+               "hardware occlusion queries (`--visibility queries --stages split --query-threshold T`).", "",
+               sweep_table(scenes), ""]
+    md += ["## Plots", ""]
     for m in made:
         md.append(f"![{m}](plots/{m})")
         md.append("")

@@ -74,6 +74,10 @@ class Runner:
         self.render_extra = ["--stage-turns", str(self.out / "stage-turns.lock")] if cost == "turns" else []
         self.timings = {}  # label -> wall seconds
         self.osg = self.osg_settings()  # checked before any run
+        # the OpenSceneGraph baseline: on unless the scale (else the suite's
+        # [run]) says osg_baseline = false; a scaling suite uses none of its
+        # figures, and at a large scale it is one more single-node render
+        self.osg_baseline = bool(self.cfg.get("osg_baseline", self.run_cfg.get("osg_baseline", True)))
 
     # --- plan -------------------------------------------------------------
     def configurations(self):
@@ -96,7 +100,7 @@ class Runner:
 
     def total_steps(self):
         # generate, preprocess, reference, OSG baseline, (render, compare)*
-        per_scene = 2 + 1 + 1 + 2 * len(self.configurations())
+        per_scene = 2 + 1 + int(self.osg_baseline) + 2 * len(self.configurations())
         return per_scene * len(self.scenes())
 
     # --- scenes -----------------------------------------------------------
@@ -157,6 +161,49 @@ class Runner:
             opts += [OSG_KEYS[k], v]
         return opts
 
+    # --- a reference on every k-th frame ------------------------------------
+    # Brute force costs seconds a frame at the paper's scale (4 to 12 s on 2
+    # cores), so a scale may set reference_stride = k: the reference renders control points 0, k,
+    # 2k, ... (one frame per control point, the same cameras), and each run's
+    # frames 0, k, 2k, ... are compared with them, index for index.
+    def reference_stride(self):
+        k = int(self.cfg.get("reference_stride", 1))
+        if k < 1:
+            sys.exit("dmmr-bench: reference_stride must be at least 1")
+        return k
+
+    @staticmethod
+    def strided_lines(path, k):
+        return [l for l in Path(path).read_text().splitlines() if l.strip()][::k]
+
+    @staticmethod
+    def csv_rows(path):
+        return max(0, sum(1 for l in Path(path).read_text().splitlines() if l.strip()) - 1)
+
+    def strided_path(self, path, k):
+        if k == 1:
+            return path
+        sub = Path(path).with_suffix(f".every{k}.path")
+        sub.write_text("\n".join(self.strided_lines(path, k)) + "\n")
+        return sub
+
+    def frames_like_reference(self, out_dir, k):
+        """out_dir itself, or (k > 1) a directory of links to its frames 0, k, 2k, ... named 0, 1, 2, ..."""
+        if k == 1:
+            return out_dir
+        d = Path(f"{out_dir}.every{k}")
+        self._fresh(d)
+        d.mkdir()
+        frames = sorted(Path(out_dir).glob("frame_*.png"))
+        for j, src in enumerate(frames[::k]):
+            (d / f"frame_{j:06d}.png").symlink_to(src.resolve())
+        return d
+
+    def compare(self, ref_dir, out_dir, stride, cmp_csv):
+        # thresholds are checked by the report (conservative runs must be identical)
+        run_cmd([self.bin / "dmmr-compare", ref_dir, self.frames_like_reference(out_dir, stride), "--csv", cmp_csv,
+                 "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
+
     def _fresh(self, *paths):
         for p in paths:
             p = Path(p)
@@ -171,16 +218,22 @@ class Runner:
         rd = self.out / "runs" / name
         rd.mkdir(parents=True, exist_ok=True)
         ref_dir, ref_csv = rd / "reference", rd / "reference.csv"
-        if self.resume and ref_csv.exists():
+        stride = self.reference_stride()
+        ref_path = self.strided_path(path, stride)
+        want = len(self.strided_lines(path, stride))
+        if self.resume and ref_csv.exists() and self.csv_rows(ref_csv) == want:
             progress.step(f"{name}: dmmr-reference reused")
         else:
-            self._fresh(ref_dir, ref_csv)
-            dt = run_cmd([self.bin / "dmmr-reference", *self.common_opts(scene_dir, path, ref_dir, ref_csv)],
+            # a new reference (or one of another stride): every run is compared with it again
+            self._fresh(ref_dir, ref_csv, *(rd / f"{label}.cmp.csv" for label, _, _ in self.configurations()))
+            dt = run_cmd([self.bin / "dmmr-reference", *self.common_opts(scene_dir, ref_path, ref_dir, ref_csv)],
                          self.log, env=self.env)
             self.timings[f"{name}/reference"] = dt
             progress.step(f"{name}: dmmr-reference (brute force) in {dt:.1f} s")
         osg_dir, osg_csv = rd / OSG_LABEL, rd / f"{OSG_LABEL}.csv"
-        if self.resume and osg_csv.exists():
+        if not self.osg_baseline:
+            osg_csv = None  # not run: the report says so (a CSV left from an earlier run is not used)
+        elif self.resume and osg_csv.exists():
             progress.step(f"{name}: {OSG_TOOL} reused")
         else:
             self._fresh(osg_dir, osg_csv)
@@ -190,9 +243,13 @@ class Runner:
         for label, n, extra in self.configurations():
             out_dir, csv = rd / label, rd / f"{label}.csv"
             cmp_csv = rd / f"{label}.cmp.csv"
-            if self.resume and csv.exists() and cmp_csv.exists():
+            if self.resume and csv.exists() and out_dir.is_dir():
                 progress.step(f"{name}: {label} reused")
-                progress.step(f"{name}: {label} comparison reused")
+                if cmp_csv.exists():
+                    progress.step(f"{name}: {label} comparison reused")
+                else:  # e.g. the reference was rerun on more frames: compare the frames kept
+                    self.compare(ref_dir, out_dir, stride, cmp_csv)
+                    progress.step(f"{name}: {label} compared with the reference")
                 continue
             self._fresh(out_dir, csv, cmp_csv)
             cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
@@ -203,9 +260,7 @@ class Runner:
             self.timings[f"{name}/{label}"] = dt
             progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
                           f"{' ' + ' '.join(extra) if extra else ''} in {dt:.1f} s")
-            # thresholds are checked by the report (conservative runs must be identical)
-            run_cmd([self.bin / "dmmr-compare", ref_dir, out_dir, "--csv", cmp_csv,
-                     "--min-psnr", "0", "--max-diff-pixels", "999999999"], self.log)
+            self.compare(ref_dir, out_dir, stride, cmp_csv)
             progress.step(f"{name}: {label} compared with the reference")
-        return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd),
-                "osg_csv": str(osg_csv)}
+        return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd), "reference_stride": stride,
+                "osg_csv": str(osg_csv) if osg_csv else None}

@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+"""CTest bench_scaling_small: runs `dmmr-bench scaling --scale small` and
+checks the scaling report's structure (measurement method, targets
+checklist, scaling, inflation and breakdown tables, summary.json keys) and
+its accuracy (every frame identical to the reference). Never timings: the
+targets' met / not met depend on the machine, only their presence is checked.
+
+usage: check_scaling.py SOURCE_DIR BIN_DIR OUT_DIR"""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+src, bin_dir, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+failures = []
+CLIENTS = [1, 2, 4, 8, 16]
+WORK = ("queried", "visible", "triangles", "occluders", "pixels", "cpu_ms")
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print(f"FAIL: {what}", flush=True)
+
+
+if out.exists():
+    shutil.rmtree(out)  # a fresh run: the tool must generate its scenes too
+p = subprocess.run([sys.executable, str(src / "scripts" / "dmmr-bench"), "scaling", "--scale", "small",
+                    "--bin", str(bin_dir), "--out", str(out)])
+check(p.returncode == 0, f"dmmr-bench exit status {p.returncode} (0 expected)")
+rep = out / "report"
+for f in ("summary.json", "report.md"):
+    check((rep / f).is_file() and (rep / f).stat().st_size > 0, f"report/{f} present and non-empty")
+if failures:
+    sys.exit(1)
+
+s = json.loads((rep / "summary.json").read_text())
+for k in ("cost", "report", "targets", "targets_check", "render_lp_num_threads", "mpirun", "cpus",
+          "load_average_start", "load_average_end", "accuracy_ok"):
+    check(k in s, f"summary.json has key {k}")
+check(s.get("cost") == "cpu", "the suite's default cost is cpu")
+check(s.get("render_lp_num_threads") == "0", "dmmr-render ran with LP_NUM_THREADS=0")
+check("--bind-to none" in s.get("mpirun", "") and "--oversubscribe" in s.get("mpirun", ""),
+      "mpirun unbound and oversubscribed")
+check(s.get("accuracy_ok") is True, "summary.json accuracy_ok is true")
+labels = [c["label"] for c in s.get("configurations", [])]
+check(labels == [f"render-c{n}" for n in CLIENTS], f"configurations are the plain runs with {CLIENTS} clients")
+
+checks = s.get("targets_check", [])
+check(len(checks) == 5, f"five targets checked ({len(checks)})")
+for c in checks:
+    check(set(c) == {"target", "met", "detail"} and c["met"] in (True, False, None), f"target entry {c}")
+ident = [c for c in checks if "identical" in c.get("target", "")]
+check(len(ident) == 1 and ident[0]["met"] is True, "the every-frame-identical target is met")
+
+for sc in s.get("scenes", []):
+    name, ref = sc["scene"], sc["reference"]
+    for n in CLIENTS:
+        r = sc["runs"].get(f"render-c{n}")
+        check(r is not None, f"{name}: run with {n} clients")
+        if r is None:
+            continue
+        check(r["accuracy"]["frames"] == ref["frames"] and r["accuracy"]["identical_frames"] == ref["frames"],
+              f"{name}/{n}: every frame compared and identical")
+        check(len(r["per_client"]) == n, f"{name}/{n}: one entry per client")
+        for k in ("derived_efficiency", "derived_speedup_vs_1_client", "client_max_over_mean_median",
+                  "derived_cpu_frame_ms_mean", "work_sums", "inflation"):
+            check(r.get(k) is not None, f"{name}/{n}: {k}")
+        inf = r.get("inflation") or {}
+        check(set(WORK) <= set(inf), f"{name}/{n}: inflation of {', '.join(WORK)}")
+        if n == 1:
+            check(all(inf.get(k) in (1.0, None) for k in WORK), f"{name}/1: inflation 1 against itself")
+        # each client reads back its own region: the pixels read back sum to one frame whatever n
+        check(inf.get("pixels") is not None and abs(inf["pixels"] - 1.0) < 1e-6, f"{name}/{n}: pixels tile the frame")
+
+md = (rep / "report.md").read_text()
+for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)", "### Work inflation against 1 client",
+                "### Frame time, efficiency, speed-up and balance", "## Summary", "## Plots"):
+    check(heading in md, f"report.md has '{heading}'")
+check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")
+for words in ("LP_NUM_THREADS=0", "--bind-to none", "oversubscribed", "--cost cpu", "load average"):
+    check(words in md, f"the method says {words!r}")
+check(md.count("**met**") + md.count("**not met**") + md.count("**not measured**") == 5, "five checklist lines")
+check("## Speed against error" not in md, "no sweep section without a sweep")
+check("| objects tested | objects drawn | triangles drawn |" in md, "the inflation table's header")
+if any(c["met"] is False for c in checks):
+    check("### Where the time goes" in md and "16 clients, per client and stage" in md,
+          "a missed target brings the per-client per-stage breakdown of the largest client count")
+check("FAIL" not in md, "no accuracy FAIL")
+png = rep / "plots" / "scaling.png"
+check(png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", "plots/scaling.png")
+check(not (rep / "plots" / "speed_error.png").exists(), "no speed-against-error plot without a sweep")
+
+print(f"bench_scaling_small: {len(failures)} failed checks; dmmr-bench wall {s.get('wall_s', 0):.1f} s")
+sys.exit(1 if failures else 0)
