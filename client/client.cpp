@@ -245,6 +245,25 @@ class Culler {
     // only ever that of objects that pass (at each pixel the front-most
     // passes), which are redrawn there.
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
+      // When step 1 drew next to nothing (last frame's visible set left the
+      // region: the camera turned or passed a wall), nearly the whole region
+      // is new, and drawing all of it into depth is a brute-force pass. The
+      // preprocessor's potential occluders among the new objects (big and
+      // cheap) go first, and only what still passes after them is drawn.
+      // They are new objects too, so the argument above holds for them.
+      if (fresh_tris > kOccludersFirstRatio * first_tris + kFewNewTriangles) {
+        std::vector<uint32_t> occluders;
+        std::set_intersection(fresh.begin(), fresh.end(), scene_.occluders.begin(),
+                              scene_.occluders.end(), std::back_inserter(occluders));
+        if (!occluders.empty() && occluders.size() < fresh.size()) {
+          gl_.renderer.maskColor(true);
+          for (uint32_t o : occluders) drawDepth(o);
+          gl_.renderer.maskColor(false);
+          passed = testPyramid(passed, job, &d);
+          std::sort(passed.begin(), passed.end());
+          fresh = newOnes();
+        }
+      }
       gl_.renderer.maskColor(true);
       for (uint32_t o : fresh) drawDepth(o);
       gl_.renderer.maskColor(false);
@@ -293,6 +312,9 @@ class Culler {
   // New objects of up to this many triangles are always few enough to draw
   // on top.
   static constexpr uint64_t kFewNewTriangles = 4096;
+  // New objects of more than this many times step 1's triangles make the
+  // second pass draw the potential occluders among them first.
+  static constexpr uint64_t kOccludersFirstRatio = 8;
 
   // A fused frame's bookkeeping: it drew `first` and `fresh`; what
   // `passed` (ascending) is marked and, with the marked, the next frame's

@@ -3,6 +3,7 @@
 // zero), and failures must end the run with one clear message, no hang.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <osg/Geode>
@@ -465,6 +466,57 @@ INSTANTIATE_TEST_SUITE_P(
     [](const auto& info) {
       return test::slug(std::get<0>(info.param) + "_" + std::get<1>(info.param));
     });
+
+// The camera turning from one plant to another: each frame looks at the
+// other of two plants far apart, so last frame's visible set has left the
+// view (but is not empty) and the fused stage's step 1 draws nothing; the
+// second pass then draws the potential occluders among the new objects
+// first (Culler::drawFused). Frames stay exact, with 1 and 3 clients.
+TEST(FusedStages, TurningToAnotherPlantDrawsThePotentialOccludersFirstAndStaysExact) {
+  TempDir dir;
+  osg::ref_ptr<osg::Node> plant = scenegen::makePlant(scenegen::PlantParams{2, 40000, 600});
+  osg::BoundingBox b = scenegen::sceneBounds(*plant);
+  double half = 2.0 * b.radius();
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  for (double side : {-1.0, 1.0}) {
+    auto* t = new osg::MatrixTransform(
+        osg::Matrixd::translate(side * half - b.center().x(), -b.center().y(), -b.center().z()));
+    t->addChild(plant);
+    root->addChild(t);
+  }
+  std::string model = dir / "plants.osgb", scene = dir / "scene";
+  ASSERT_TRUE(osgDB::writeNodeFile(*root, model));
+  PreprocessOptions o;
+  o.inputs = {model};
+  o.out = scene;
+  o.progress = false;
+  preprocess(o);
+  Walkthrough w;
+  Vec3d eye{0, -0.2 * half, 0.1 * b.radius()};
+  for (int f = 0; f < 5; ++f) {
+    Vec3d at{(f % 2 ? 1 : -1) * half, 0.05 * f * half, 0};
+    w.points.push_back({0.1 * f, eye, lookAtRotation(eye, at, {0, 0, 1})});
+  }
+  std::string path = dir / "turning.path", reference = dir / "reference";
+  writeWalkthrough(path, w);
+  ASSERT_EQ(test::run(test::tool("dmmr-reference") + " --no-progress --width 320 --height 240" +
+                      " --scene " + scene + " --walkthrough " + path + " --out " + reference),
+            0);
+  for (int clients : {1, 3}) {
+    std::string out = dir / ("frames-" + std::to_string(clients));
+    int status = 0;
+    std::string log = test::runCapture(
+        "timeout 120 " + test::mpirun(clients + 1) + " " + test::tool("dmmr-render") +
+            " --no-progress --width 320 --height 240 --stages fused --cost-model off --scene " +
+            scene + " --walkthrough " + path + " --out " + out,
+        &status);
+    ASSERT_EQ(status, 0) << log;
+    std::vector<FrameDiff> diffs = compareDirectories(reference, out);
+    ASSERT_EQ(diffs.size(), 5u);
+    for (const FrameDiff& d : diffs)
+      EXPECT_EQ(d.diff.differing_pixels, 0) << clients << " clients, " << d.name;
+  }
+}
 
 // Heterogeneous clients (--weights fitted): a client slowed 4x on purpose
 // (DMMR_SLOW_CLIENT spins its render stage; LP_NUM_THREADS=0 so that CPU
