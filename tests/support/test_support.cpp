@@ -58,7 +58,28 @@ int run(const std::string& command) {
   return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
 }
 
+namespace {
+// mpirun's report of a rank that exited "improperly" with no PID, with no
+// message from dmmr at all: seen twice on the development machine in full
+// suite runs (many mpirun jobs starting at once), never reproduced alone;
+// taken as a launch failure and tried once more (runCapture), loudly.
+bool launchFailure(const std::string& command, int status, const std::string& out) {
+  return status != 0 && command.find("mpirun") != std::string::npos &&
+         out.find("with PID 0 on node") != std::string::npos &&
+         out.find("dmmr-") == std::string::npos;
+}
+}  // namespace
+
 std::string runCapture(const std::string& command, int* status, double* seconds) {
+  std::string out = runCaptureOnce(command, status, seconds);
+  if (!launchFailure(command, *status, out)) return out;
+  std::fprintf(stderr,
+               "test_support: mpirun reported a rank that never ran properly; once more:\n%s\n",
+               out.c_str());
+  return runCaptureOnce(command, status, seconds);
+}
+
+std::string runCaptureOnce(const std::string& command, int* status, double* seconds) {
   auto t0 = std::chrono::steady_clock::now();
   std::string out;
   FILE* p = ::popen((command + " 2>&1").c_str(), "r");

@@ -56,6 +56,11 @@ int run(const std::string& command);
 // With `seconds`, also the command's wall time (tests that a failure ends
 // the run promptly).
 std::string runCapture(const std::string& command, int* status, double* seconds = nullptr);
+// The same without the retry: runCapture runs an mpirun command once more
+// when mpirun reports a rank that never ran properly (a rank "with PID 0"
+// exiting improperly, no message from dmmr), a launch failure seen rarely
+// when many mpirun jobs start at once.
+std::string runCaptureOnce(const std::string& command, int* status, double* seconds = nullptr);
 
 // Values by column name, read strictly: reading a column that is not there
 // throws Error naming the file and the column, so a renamed column fails its
