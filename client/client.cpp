@@ -244,6 +244,16 @@ class Culler {
     // the next frame. The depth they leave outside the redrawn footprints is
     // only ever that of objects that pass (at each pixel the front-most
     // passes), which are redrawn there.
+    // `objects` into depth only (colour masked), then what passed is tested
+    // again against that fuller depth.
+    auto depthPassAndRetest = [&](const std::vector<uint32_t>& objects) {
+      gl_.renderer.maskColor(true);
+      for (uint32_t o : objects) drawDepth(o);
+      gl_.renderer.maskColor(false);
+      passed = testPyramid(passed, job, &d);
+      std::sort(passed.begin(), passed.end());
+      fresh = newOnes();
+    };
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       // When step 1 drew next to nothing (last frame's visible set left the
       // region: the camera turned or passed a wall), nearly the whole region
@@ -255,21 +265,9 @@ class Culler {
         std::vector<uint32_t> occluders;
         std::set_intersection(fresh.begin(), fresh.end(), scene_.occluders.begin(),
                               scene_.occluders.end(), std::back_inserter(occluders));
-        if (!occluders.empty() && occluders.size() < fresh.size()) {
-          gl_.renderer.maskColor(true);
-          for (uint32_t o : occluders) drawDepth(o);
-          gl_.renderer.maskColor(false);
-          passed = testPyramid(passed, job, &d);
-          std::sort(passed.begin(), passed.end());
-          fresh = newOnes();
-        }
+        if (!occluders.empty() && occluders.size() < fresh.size()) depthPassAndRetest(occluders);
       }
-      gl_.renderer.maskColor(true);
-      for (uint32_t o : fresh) drawDepth(o);
-      gl_.renderer.maskColor(false);
-      passed = testPyramid(passed, job, &d);
-      std::sort(passed.begin(), passed.end());
-      fresh = newOnes();
+      depthPassAndRetest(fresh);  // drawn before the pass replaces `fresh`
     }
     d.prepare_ms = msSince(t0) - d.retrieve_ms;
     if (!fresh.empty()) {

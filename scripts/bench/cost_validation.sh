@@ -19,8 +19,6 @@ mkdir -p "$out"
 source scripts/bench/lib.sh
 scene plants4 replicate --of plant --copies 4 --triangles 400000 --geodes 5000 --seed 1 --frames 40
 scene monuments25 replicate --of monument --copies 25 --triangles 120000 --geodes 500 --seed 1 --frames 40
-launch=(mpirun --oversubscribe --bind-to none)
-[ "$(id -u)" -eq 0 ] && launch+=(--allow-run-as-root)
 for r in $(seq 1 "$reps"); do
   for s in plants4 monuments25; do
     for run in "turns-c1|1|--stage-turns $out/turns.lock" "turns-c4|4|--stage-turns $out/turns.lock" \

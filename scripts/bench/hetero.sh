@@ -37,8 +37,6 @@ configs=(  # label|clients|slowed client (0: none)|weights
   "c4-slow-visible|4|2|visible"
   "c4-slow-fitted|4|2|fitted"
 )
-launch=(mpirun --oversubscribe --bind-to none)
-[ "$(id -u)" -eq 0 ] && launch+=(--allow-run-as-root)
 for r in $(seq 1 "$reps"); do
   for c in "${configs[@]}"; do
     IFS='|' read -r label n slow weights <<<"$c"

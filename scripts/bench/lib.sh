@@ -3,6 +3,9 @@
 # out/bench/NAME.{osgb,generated.path,scene}, reused when present.
 mpi=(mpirun --oversubscribe --bind-to none -np 2)
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
+# The same without the rank count, for scripts that run several client counts.
+launch=(mpirun --oversubscribe --bind-to none)
+[ "$(id -u)" -eq 0 ] && launch+=(--allow-run-as-root)
 
 scene() {  # name, scenegen arguments...
   local name=$1
