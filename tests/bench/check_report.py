@@ -8,31 +8,15 @@ ratios to it in the report. Not timings.
 usage: check_report.py SOURCE_DIR BIN_DIR OUT_DIR"""
 import json
 import math
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
+from bench_check import check, failures, run_small
+
 src, bin_dir, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
-failures = []
 
 
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}", flush=True)
-
-
-if out.exists():
-    shutil.rmtree(out)  # a fresh run: the tool must generate its scenes too
-p = subprocess.run([sys.executable, str(src / "scripts" / "dmmr-bench"), "paper", "--scale", "small",
-                    "--bin", str(bin_dir), "--out", str(out)])
-check(p.returncode == 0, f"dmmr-bench exit status {p.returncode} (0 expected)")
-rep = out / "report"
-for f in ("summary.json", "report.md"):
-    check((rep / f).is_file() and (rep / f).stat().st_size > 0, f"report/{f} present and non-empty")
-if failures:
-    sys.exit(1)
+rep = run_small(src, bin_dir, out, "paper")
 
 s = json.loads((rep / "summary.json").read_text())
 for k in ("suite", "scale", "command", "machine", "width", "height", "wall_s", "configurations", "scenes",

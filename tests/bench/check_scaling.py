@@ -7,33 +7,17 @@ targets' met / not met depend on the machine, only their presence is checked.
 
 usage: check_scaling.py SOURCE_DIR BIN_DIR OUT_DIR"""
 import json
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
+from bench_check import check, failures, run_small
+
 src, bin_dir, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
-failures = []
 CLIENTS = [1, 2, 4, 8, 16]
 WORK = ("queried", "visible", "triangles", "occluders", "pixels", "cpu_ms")
 
 
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}", flush=True)
-
-
-if out.exists():
-    shutil.rmtree(out)  # a fresh run: the tool must generate its scenes too
-p = subprocess.run([sys.executable, str(src / "scripts" / "dmmr-bench"), "scaling", "--scale", "small",
-                    "--bin", str(bin_dir), "--out", str(out)])
-check(p.returncode == 0, f"dmmr-bench exit status {p.returncode} (0 expected)")
-rep = out / "report"
-for f in ("summary.json", "report.md"):
-    check((rep / f).is_file() and (rep / f).stat().st_size > 0, f"report/{f} present and non-empty")
-if failures:
-    sys.exit(1)
+rep = run_small(src, bin_dir, out, "scaling")
 
 s = json.loads((rep / "summary.json").read_text())
 for k in ("cost", "report", "targets", "targets_check", "render_lp_num_threads", "mpirun", "cpus",
