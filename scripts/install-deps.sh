@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Installs the Debian packages dmmr needs, only those missing. Idempotent.
+# Installs the Debian packages dmmr needs, only those missing, then the browser
+# test's npm packages (tests/browser: playwright-core, driving Debian's
+# chromium) when node_modules is missing. Idempotent.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 
 packages=(
   cmake ninja-build g++ pkg-config
@@ -16,13 +19,36 @@ packages=(
   python3 time
   python3-matplotlib
   iptables iproute2  # network emulation (scripts/netem: NFQUEUE delay, namespaces, tc)
+  chromium  # the viewer page's browser test (tests/browser), headless
 )
+# node and npm for that test, from Debian unless a node is already installed
+# (another distribution's nodejs package, e.g. NodeSource's, brings its own npm
+# and conflicts with Debian's npm).
+command -v node >/dev/null || packages+=(nodejs npm)
+
+# tests/browser/node_modules from its package-lock.json, when missing or older
+# than the lock file. Without the npm registry this only warns: the browser
+# test then skips, saying why.
+npm_packages() {
+  local dir=tests/browser
+  [ -f $dir/node_modules/playwright-core/package.json ] &&
+    ! [ $dir/package-lock.json -nt $dir/node_modules/.package-lock.json ] && return 0
+  command -v npm >/dev/null || { echo "install-deps: no npm; the browser test will be skipped" >&2; return 0; }
+  echo "install-deps: npm ci in tests/browser (playwright-core; no browser is downloaded)"
+  if ! (cd $dir && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund); then
+    rm -rf $dir/node_modules
+    echo "install-deps: npm ci failed in $dir; the browser test will be skipped" >&2
+  fi
+}
 
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-[ ${#missing[@]} -eq 0 ] && exit 0
+if [ ${#missing[@]} -eq 0 ]; then
+  npm_packages
+  exit 0
+fi
 
 echo "install-deps: installing ${missing[*]}"
 sudo=""
@@ -33,3 +59,4 @@ fi
 export DEBIAN_FRONTEND=noninteractive
 $sudo apt-get update -qq
 $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+npm_packages
