@@ -76,6 +76,13 @@ function sameAsReference(pathFile, from, fovy, png, what) {
 
 let width = 0, height = 0;
 
+// The camera's view direction, its local -Z, in world space: minus the third
+// column of the rotation matrix of unit quaternion q = [x, y, z, w].
+function forward(q) {
+  const [x, y, z, w] = q;
+  return [-2 * (x * z + w * y), -2 * (y * z - w * x), -(1 - 2 * (x * x + y * y))];
+}
+
 async function main() {
   fs.mkdirSync(args.out, { recursive: true });
   const base = new URL(args.url);
@@ -178,6 +185,11 @@ async function browserChecks(context, url, wrong, origin) {
   check(Math.abs(dist(after.pose) - dist(before)) < 1e-9 * dist(before) &&
         JSON.stringify(after.pose.target) === JSON.stringify(before.target),
     'orbit: the camera kept its target and its distance to it');
+  const ahead = (p) => {
+    const f = forward(p.rotation), d = dist(p);
+    return f.reduce((s, x, i) => s + x * (p.target[i] - p.position[i]) / d, 0);
+  };
+  check(ahead(after.pose) > 1 - 1e-9, `orbit: the target is still straight ahead (cos ${ahead(after.pose)})`);
 
   await waitFor('a frame for the last pose of the drag', (s) => dmmrViewer.lastFrame.seq === s, after.seq);
   const moved = await page.evaluate(() => {
@@ -244,10 +256,7 @@ async function browserChecks(context, url, wrong, origin) {
   await page.keyboard.up('w');
   const flyTo = await page.evaluate(() => dmmrViewer.pose());
   const step = flyTo.position.map((x, i) => x - flyFrom.position[i]);
-  const fwd = await page.evaluate(() => {
-    const q = dmmrViewer.pose().rotation;  // camera -Z in world space
-    return [-2 * (q[0] * q[2] + q[3] * q[1]), -2 * (q[1] * q[2] - q[3] * q[0]), -(1 - 2 * (q[0] * q[0] + q[1] * q[1]))];
-  });
+  const fwd = forward(flyTo.rotation);
   const stepLen = Math.hypot(...step);
   check(stepLen > 0 && step.reduce((s, x, i) => s + x * fwd[i], 0) > 0.999 * stepLen,
     `fly: W moved the camera ${stepLen.toFixed(3)} along its view direction`);
