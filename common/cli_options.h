@@ -14,12 +14,16 @@ struct RunPaths {
   std::string scene, walkthrough, out, stats;
 };
 
-// --scene, --walkthrough, --out (required), --stats, and the view: --width,
-// --height, --fovy, --near.
-inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view) {
+// --scene, --walkthrough, --out (required unless `path_optional`: the
+// caller then checks them), --stats, and the view: --width, --height,
+// --fovy, --near.
+inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view,
+                          bool path_optional = false) {
   app.add_option("--scene", paths.scene, "preprocessed scene directory")->required();
-  app.add_option("--walkthrough", paths.walkthrough, "AnimationPath file")->required();
-  app.add_option("--out", paths.out, "output directory for frame_NNNNNN.png")->required();
+  app.add_option("--walkthrough", paths.walkthrough, "AnimationPath file")
+      ->required(!path_optional);
+  app.add_option("--out", paths.out, "output directory for frame_NNNNNN.png")
+      ->required(!path_optional);
   app.add_option("--stats", paths.stats, "per-frame statistics CSV");
   app.add_option("--width", view.width, "image width")->check(CLI::Range(1, 16384));
   app.add_option("--height", view.height, "image height")->check(CLI::Range(1, 16384));

@@ -22,6 +22,14 @@ bool parseDouble(std::string_view s, double* out) {
 
 }  // namespace
 
+bool unitRotation(const Quatd& q, Quatd* out, double* norm) {
+  double n = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+  if (norm) *norm = n;
+  if (!(std::fabs(n - 1.0) <= 1e-3)) return false;
+  *out = {q.x / n, q.y / n, q.z / n, q.w / n};
+  return true;
+}
+
 Walkthrough parseWalkthrough(const std::string& text, const std::string& path) {
   Walkthrough w;
   std::istringstream in(text);
@@ -50,12 +58,10 @@ Walkthrough parseWalkthrough(const std::string& text, const std::string& path) {
       throw Error(fileError(
           path, lineno, "expected 8 fields (time x y z qx qy qz qw), got " + std::to_string(n)));
     ControlPoint cp{v[0], {v[1], v[2], v[3]}, {v[4], v[5], v[6], v[7]}};
-    double norm = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
-    if (std::fabs(norm - 1.0) > 1e-3)
+    if (double norm; !unitRotation(cp.rotation, &cp.rotation, &norm))
       throw Error(
           fileError(path, lineno,
                     "rotation quaternion is not unit length (|q| = " + std::to_string(norm) + ")"));
-    cp.rotation = {v[4] / norm, v[5] / norm, v[6] / norm, v[7] / norm};
     if (!w.points.empty() && cp.time < w.points.back().time)
       throw Error(fileError(path, lineno, "time goes backwards"));
     w.points.push_back(cp);

@@ -27,6 +27,12 @@ struct Walkthrough {
 // fields, a field that is not a finite number, a zero or non-unit quaternion
 // (|q| off 1 by more than 1e-3; near-unit ones are renormalised), or time
 // going backwards. An empty path is an error too.
+// A camera rotation as every pose source takes it: |q| within 1e-3 of 1,
+// then divided by |q| (so a pose written to a file and read back renders the
+// same camera). False, with *norm set, when q is off unit length or not
+// finite; *out is then untouched.
+bool unitRotation(const Quatd& q, Quatd* out, double* norm = nullptr);
+
 Walkthrough parseWalkthrough(const std::string& text, const std::string& path);
 Walkthrough readWalkthrough(const std::string& path);
 std::string formatWalkthrough(const Walkthrough& w);

@@ -11,6 +11,7 @@ packages=(
   libosmesa6-dev libegl-dev libgl-dev libegl-mesa0
   libopenmpi-dev openmpi-bin
   zlib1g-dev liblz4-dev libpng-dev
+  libturbojpeg0-dev libboost-dev  # interactive mode: JPEG frames, Boost.Beast
   libmeshoptimizer-dev libcli11-dev nlohmann-json3-dev
   libassimp-dev  # glTF, FBX, 3MF, OFF inputs
   googletest libgtest-dev

@@ -17,7 +17,22 @@ int main(int argc, char** argv) {
   std::string backend = "osmesa", codec = "lz4";
   CLI::App app{"dmmr-render: distributed rendering of a walkthrough (rank 0 server, 1..N clients)"};
   dmmr::RunPaths paths;
-  dmmr::addRunOptions(app, paths, s.view);
+  dmmr::addRunOptions(app, paths, s.view, /*path_optional=*/true);
+  std::string serve;
+  app.add_option("--serve", serve,
+                 "interactive mode: serve the viewer page and a WebSocket on [ADDR:]PORT "
+                 "(ADDR 127.0.0.1 unless given; port 0: any free one) and render the poses "
+                 "viewers send; --walkthrough then gives the home pose, --out is optional "
+                 "(docs/interactive.md)");
+  app.add_option("--still-ms", s.serve_opts.still_ms,
+                 "interactive: after this long without a new pose the exact frame follows as PNG")
+      ->check(CLI::Range(0.0, 60000.0));
+  app.add_option("--serve-max-rate", s.serve_opts.max_rate,
+                 "interactive: messages a second a viewer may send before it is cut off")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--serve-max-viewers", s.serve_opts.max_viewers,
+                 "interactive: viewers at once; more are refused")
+      ->check(CLI::Range(1, 1024));
   app.add_option("--in-flight", s.in_flight, "frames sent ahead of the last assembled")
       ->check(CLI::Range(1, 16));
   app.add_option("--backend", backend, "client GL backend: osmesa or egl")
@@ -101,6 +116,26 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     if (quiet) return e.get_exit_code() == 0 ? 0 : 1;
     return dmmr::exitParse(app, e);
+  }
+  if (!serve.empty()) {
+    s.serve = true;
+    s.progress = false;
+    if (!dmmr::parseServeAddress(serve, &s.serve_opts.address, &s.serve_opts.port)) {
+      if (!quiet)
+        std::fprintf(stderr,
+                     "dmmr-render: --serve %s: expected [ADDR:]PORT, e.g. 8080 or "
+                     "0.0.0.0:8080\n",
+                     serve.c_str());
+      return 1;
+    }
+    // One frame at a time per viewer unless told: the latency a person
+    // feels is the pipeline's depth times the frame time.
+    if (app.count("--in-flight") == 0) s.in_flight = 1;
+    s.serve_opts.max_rendering = s.in_flight;
+  } else if (paths.walkthrough.empty() || paths.out.empty()) {
+    if (!quiet)
+      std::fprintf(stderr, "dmmr-render: --walkthrough and --out are required (or --serve)\n");
+    return 1;
   }
   s.scene = c.scene = paths.scene;
   s.walkthrough = paths.walkthrough;

@@ -24,6 +24,7 @@
 #include "plan.h"
 #include "protocol.h"
 #include "scene.h"
+#include "serve.h"
 #include "stats_csv.h"
 #include "walkthrough.h"
 
@@ -84,9 +85,17 @@ class Assembler {
  public:
   // `planner`, when given, hears which objects the clients drew.
   // `csv`: the stats CSV, each finished frame's row appended.
+  // `hub`, when given, gets every frame (interactive mode); then `frames` is
+  // only an upper bound and the run ends when the planner stops.
   Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames,
-            FramePlanner* planner, StatsCsvAppender& csv)
-      : comm_(comm), opts_(opts), clients_(clients), frames_(frames), planner_(planner), csv_(csv) {
+            FramePlanner* planner, StatsCsvAppender& csv, ViewerHub* hub = nullptr)
+      : comm_(comm),
+        opts_(opts),
+        clients_(clients),
+        frames_(frames),
+        planner_(planner),
+        csv_(csv),
+        hub_(hub) {
     assembled_ = opts.from_frame;
     last_done_ = Clock::now();
   }
@@ -142,11 +151,17 @@ class Assembler {
   void run() {
     auto last = Clock::now();
     for (;;) {
+      bool idle;
       {
         std::lock_guard<std::mutex> lock(mu_);
         if (failed_ ? planner_done_ : assembled_ >= frames_) return;
+        if (planner_done_ && pending_.empty()) return;  // interactive: stopped
+        // Nothing owed (an interactive run waiting for a pose): silence is
+        // no sign of a dead client.
+        idle = !failed_ && pending_.empty();
       }
       std::optional<Message> got = comm_.recvFor(kAnySource, kPollS);
+      if (idle) last = Clock::now();
       if (!got) {
         if (msBetween(last, Clock::now()) > opts_.client_timeout_s * 1000) silent();
         continue;
@@ -301,7 +316,7 @@ class Assembler {
     }
     if (planner_ && opts_.fitted_weights) planner_->reportCosts(costSamples(rec));
     auto tw = Clock::now();
-    writePng(opts_.out + "/" + frameFileName(frame), rec.image);
+    if (!opts_.out.empty()) writePng(opts_.out + "/" + frameFileName(frame), rec.image);
     auto done = Clock::now();
     std::ostringstream row;
     row.setf(std::ios::fixed);
@@ -318,12 +333,33 @@ class Assembler {
           << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
           << c.vis_cpu_ms << "," << c.render_cpu_ms;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
+    if (hub_) {
+      double frame_ms = msBetween(last_done_, done), latency_ms = msBetween(rec.started, done);
+      hub_->frameDone(frameDone(frame, std::move(rec), frame_ms, latency_ms));
+    }
     last_done_ = done;
     if (opts_.progress) std::fprintf(stderr, "\rdmmr-render: frame %u/%zu", frame + 1, frames_);
     assemble_ms_.erase(frame);
     std::lock_guard<std::mutex> lock(mu_);
     ++assembled_;
     cv_.notify_all();
+  }
+
+  // What a viewer's frame header reports (serve.h).
+  FrameDone frameDone(uint32_t frame, FrameRecord&& rec, double frame_ms, double latency_ms) {
+    FrameDone d;
+    d.frame = frame;
+    d.cull_ms = rec.cull_ms;
+    d.divide_ms = rec.divide_ms;
+    d.assemble_ms = assemble_ms_[frame];
+    d.frame_ms = frame_ms;
+    d.latency_ms = latency_ms;
+    for (const CostSample& c : costSamples(rec)) {
+      d.clients.push_back({uint64_t(c.pixels), uint64_t(c.triangles), c.ms});
+      d.triangles += uint64_t(c.triangles);
+    }
+    d.image = std::move(rec.image);
+    return d;
   }
 
   // Each client's work and time on a frame, for fitted weights. The time is
@@ -373,6 +409,7 @@ class Assembler {
   std::atomic<int> sending_to_{0};
   std::string error_;
   StatsCsvAppender& csv_;
+  ViewerHub* hub_;
   Clock::time_point last_done_;
 };
 
@@ -479,6 +516,32 @@ void shutdownClients(Comm& comm, int clients, double timeout_s,
   }
 }
 
+// The interactive mode's hub: the home pose is the walkthrough's first point
+// or, without one, a view of the scene's bounds from above one side.
+std::unique_ptr<ViewerHub> makeHub(const ServerOptions& opts, const Scene& scene,
+                                   const Walkthrough& path, int clients, double near) {
+  ViewerHello hello;
+  hello.width = opts.view.width;
+  hello.height = opts.view.height;
+  hello.fovy_deg = opts.view.fovy_deg;
+  hello.clients = clients;
+  for (const ObjectBounds& o : scene.objects) {
+    hello.bounds.expand(o.box.lo);
+    hello.bounds.expand(o.box.hi);
+  }
+  if (!path.points.empty()) {
+    hello.home_position = path.points[0].position;
+    hello.home_rotation = path.points[0].rotation;
+  } else if (hello.bounds.valid()) {
+    Vec3d c = (hello.bounds.lo + hello.bounds.hi) * 0.5;
+    double r = std::max(length(hello.bounds.hi - hello.bounds.lo) * 0.5, near * 10);
+    double d = r / std::tan(opts.view.fovy_deg * M_PI / 360);
+    hello.home_position = c + Vec3d{0.0, -0.8, 0.6} * d;
+    hello.home_rotation = lookAtRotation(hello.home_position, c, {0, 0, 1});
+  }
+  return std::make_unique<ViewerHub>(opts.serve_opts, hello, viewerPage());
+}
+
 }  // namespace
 
 int runServer(Comm& comm, const ServerOptions& opts) {
@@ -495,11 +558,15 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   std::unique_ptr<StatsCsvAppender> csv;
   try {
     scene = loadScene(opts.scene);
-    path = readWalkthrough(opts.walkthrough);
-    if (opts.from_frame >= path.points.size())
+    if (!opts.walkthrough.empty())
+      path = readWalkthrough(opts.walkthrough);
+    else if (!opts.serve)
+      throw Error("no --walkthrough given");
+    if (opts.serve && opts.from_frame > 0) throw Error("--from-frame needs a walkthrough run");
+    if (!opts.serve && opts.from_frame >= path.points.size())
       throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
                   opts.walkthrough + " (" + std::to_string(path.points.size()) + " frames)");
-    std::filesystem::create_directories(opts.out);
+    if (!opts.out.empty()) std::filesystem::create_directories(opts.out);
     // Created here, before the clients are told to go: a stats file that
     // cannot be written stops the run before any work is done.
     csv = std::make_unique<StatsCsvAppender>(
@@ -566,9 +633,22 @@ int runServer(Comm& comm, const ServerOptions& opts) {
                  "client(s); timing each strategy on 3 frames\n",
                  rtt, clients);
   }
+  // Interactive mode: the hub serves viewers; their poses replace the path.
+  std::unique_ptr<ViewerHub> hub;
+  if (opts.serve) {
+    try {
+      hub = makeHub(opts, scene, path, clients, near);
+      std::fprintf(stderr, "dmmr-render: serving %s\n", hub->start().c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "dmmr-render: server (rank 0): %s\n", e.what());
+      shutdownClients(comm, clients, opts.client_timeout_s);
+      return 1;
+    }
+  }
+  const size_t frames = hub ? size_t(UINT32_MAX) : path.points.size();
   FramePlanner planner(scene);
-  Assembler assembler(comm, opts, clients, path.points.size(),
-                      opts.visible_weights ? &planner : nullptr, *csv);
+  Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
+                      hub.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
   assembler.onSubFrame([&](int client, uint32_t frame) { dispatcher.returned(client, frame); });
   std::thread assembling([&] {
@@ -582,7 +662,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   // ends the run through the assembler, never as std::terminate of a
   // joinable thread.
   auto planFrames = [&] {
-    for (uint32_t f = opts.from_frame; f < path.points.size(); ++f) {
+    for (uint32_t f = opts.from_frame; f < frames; ++f) {
       uint32_t i = f - opts.from_frame;
       if (trial && trial->boundary(i)) {
         if (!assembler.waitAssembled(f)) break;
@@ -598,9 +678,17 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       }
       if (!assembler.waitForRoom(f)) break;
       Balance balance = trial ? trial->strategy(i) : opts.balance;
+      Camera cam;
+      if (hub) {
+        std::optional<Pose> pose = hub->nextPose(f);
+        if (!pose) break;  // stopped
+        cam = Camera{pose->position, {}, pose->fovy_deg, double(v.width) / v.height, near};
+        unitRotation(pose->rotation, &cam.rotation);  // checked when decoded
+      } else {
+        cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
+      }
       FrameRecord rec;
       rec.started = Clock::now();
-      Camera cam = cameraAt(path.points[f], v.width, v.height, v.fovy_deg, near);
       planner.planningFrame(f);
       // Each job, with the client it goes to (-1: the dispatcher decides).
       std::vector<std::pair<int, FrameJob>> jobs;
@@ -665,6 +753,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   runGuarded(planFrames, [&](const std::string& what) { assembler.markFailed("server: " + what); });
   assembler.plannerDone();
   assembling.join();
+  if (hub) hub->stop();
   if (opts.progress) std::fprintf(stderr, "\n");
   // Sub-frames still on their way complete frames that every client
   // finished before a failure.

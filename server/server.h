@@ -7,6 +7,7 @@
 
 #include "camera.h"
 #include "mpi_comm.h"
+#include "serve.h"
 #include "tiles.h"
 
 namespace dmmr {
@@ -42,6 +43,11 @@ struct ServerOptions {
   int tile_w = 128, tile_h = 128;
   TileOrder tile_order = TileOrder::Rows;
   int tile_window = 2;
+  // Interactive mode (serve.h): poses from viewers instead of the
+  // walkthrough, which then only gives the home pose (optional); frames go
+  // to the viewers, and to `out` only when it is set.
+  bool serve = false;
+  ServeOptions serve_opts;
 };
 
 // Returns the process exit status; every message it prints names the rank
