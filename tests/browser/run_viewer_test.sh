@@ -6,8 +6,8 @@
 #   - the token: the page and the socket refuse a wrong or missing token
 #     (HTTP 403), accept the right one; the page served is
 #     server/viewer/index.html byte for byte;
-#   - the Hello (size, clients, up) and a first frame for the first pose, the
-#     home pose;
+#   - the Hello (size, clients, up, the home pose: --walkthrough's first
+#     point) and a first frame for the first pose, the home pose;
 #   - an orbit drag sends poses and brings frames, JPEG while moving, whose
 #     pixels differ from the first frame's;
 #   - the still frame (PNG) that follows is shown exactly on the canvas and is
@@ -41,16 +41,23 @@ node_major=$(node -p 'process.versions.node.split(".")[0]')
 for tool in dmmr-scenegen dmmr-preprocess dmmr-render dmmr-reference dmmr-compare; do
   [ -x "$bin/$tool" ] || { echo "FAIL: $bin/$tool is not built"; exit 1; }
 done
-if ! "$bin/dmmr-render" --help | grep -q -- '--serve'; then
+# (Into a file first: grep -q quitting early would SIGPIPE dmmr-render under pipefail.)
+work=$(mktemp -d "${TMPDIR:-/tmp}/dmmr-browser-XXXXXX")
+"$bin/dmmr-render" --help >"$work/help.txt" 2>&1 || true
+if ! grep -q -a -- '--serve' "$work/help.txt"; then
+  rm -rf "$work"
   echo "FAIL: $bin/dmmr-render has no --serve option"
   exit 1
 fi
-
-work=$(mktemp -d "${TMPDIR:-/tmp}/dmmr-browser-XXXXXX")
 mkdir -p "$out"
-pid=""
+pid="" node_pid=""
 cleanup() {
   local rc=$?
+  # node first: playwright closes its Chromium on SIGTERM.
+  if [ -n "$node_pid" ] && kill -0 "$node_pid" 2>/dev/null; then
+    kill -TERM "$node_pid" 2>/dev/null || true
+    wait "$node_pid" 2>/dev/null || true
+  fi
   if [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null; then
     # SIGTERM ends the run in order (docs/interactive.md); mpirun passes it on.
     kill -TERM "$pid" 2>/dev/null || true
@@ -82,9 +89,11 @@ for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS TSAN_OPTIONS; do
   [ -n "${!v:-}" ] && mpi+=(-x "$v")
 done
 # Its own session and process group, so that nothing it starts can outlive the test.
-echo "== ${mpi[*]} dmmr-render --serve 127.0.0.1:0"
+echo "== ${mpi[*]} dmmr-render --serve 127.0.0.1:0 (home: the plant's path's first point)"
+: >"$work/server.log"
 setsid "${mpi[@]}" "$bin/dmmr-render" --scene "$work/scene" --serve 127.0.0.1:0 \
-  --width 256 --height 256 --no-progress </dev/null >"$work/server.log" 2>&1 &
+  --walkthrough "$work/plant.path" --width 256 --height 256 --no-progress \
+  </dev/null >"$work/server.log" 2>&1 &
 pid=$!
 
 url=""
@@ -97,6 +106,10 @@ done
 [ -n "$url" ] || { echo "FAIL: dmmr-render printed no 'serving http://...' line in 60 s"; exit 1; }
 echo "== $url"
 
+# In the background and waited for, so that a signal reaches the trap at once
+# (bash runs traps only between foreground commands).
 node "$here/viewer_test.js" --url "$url" --bin "$bin" \
-  --scene "$work/scene" --work "$work" --out "$out" --clients "$clients" \
-  --page "$src/server/viewer/index.html"
+  --scene "$work/scene" --home "$work/plant.path" --work "$work" --out "$out" --clients "$clients" \
+  --page "$src/server/viewer/index.html" &
+node_pid=$!
+wait "$node_pid"

@@ -3,8 +3,9 @@
 // driven by playwright-core; no browser is downloaded). run_viewer_test.sh
 // starts the server and calls this; see there for what is checked.
 //
-// usage: node viewer_test.js --url URL --bin BIN_DIR --scene SCENE --work DIR
-//                            --out DIR --clients N --page server/viewer/index.html
+// usage: node viewer_test.js --url URL --bin BIN_DIR --scene SCENE --home PATH
+//          --work DIR --out DIR --clients N --page server/viewer/index.html
+// (PATH: the --walkthrough the server was given, whose first point is home.)
 'use strict';
 const { chromium } = require('playwright-core');
 const { spawnSync } = require('child_process');
@@ -15,7 +16,7 @@ const crypto = require('crypto');
 
 const args = {};
 for (let i = 2; i < process.argv.length; i += 2) args[process.argv[i].replace(/^--/, '')] = process.argv[i + 1];
-for (const k of ['url', 'bin', 'scene', 'work', 'out', 'clients', 'page'])
+for (const k of ['url', 'bin', 'scene', 'home', 'work', 'out', 'clients', 'page'])
   if (!args[k]) { console.error(`viewer_test.js: --${k} missing`); process.exit(2); }
 const chromiumPath = process.env.DMMR_CHROMIUM || '/usr/bin/chromium';
 
@@ -125,7 +126,10 @@ async function browserChecks(context, url, wrong, origin) {
   page.on('pageerror', (e) => pageErrors.push(String(e)));
   const refused = await page.goto(`${origin}/?token=${wrong}`);
   check(refused.status() === 403, `the browser loading the page with a wrong token gets HTTP ${refused.status()} (403)`);
-  page.on('console', (m) => { if (m.type() === 'error') console.log(`page console: ${m.text()}`); });
+  // (The refused page's favicon request, also refused, is no news.)
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !/\/favicon\.ico/.test(m.location().url)) console.log(`page console: ${m.text()}`);
+  });
 
   await page.goto(url);
   const V = 'window.dmmrViewer';
@@ -145,6 +149,9 @@ async function browserChecks(context, url, wrong, origin) {
   check(hello.width === 256 && hello.height === 256, `Hello: the run's size, ${hello.width}x${hello.height} (256x256)`);
   check(hello.clients === Number(args.clients), `Hello: ${hello.clients} clients (${args.clients})`);
   check(JSON.stringify(hello.up) === '[0,0,1]', `Hello: up ${JSON.stringify(hello.up)} ([0,0,1])`);
+  const homeLine = fs.readFileSync(args.home, 'utf8').split('\n')[0].trim().split(/\s+/).map(Number);
+  check(JSON.stringify([...hello.home.position, ...hello.home.rotation]) === JSON.stringify(homeLine.slice(1)),
+    `Hello: the home pose is --walkthrough's first point (${JSON.stringify(hello.home)})`);
   const first = await page.evaluate(() => dmmrViewer.lastFrame);
   check(first.seq === 1 && first.width === 256 && first.height === 256,
     `the first frame answers pose 1 at 256x256 (seq ${first.seq}, ${first.width}x${first.height})`);
@@ -176,7 +183,7 @@ async function browserChecks(context, url, wrong, origin) {
   const cx = box.x + box.width / 2, cy = box.y + box.height / 2;
   await page.mouse.move(cx, cy);
   await page.mouse.down();
-  await page.mouse.move(cx + 80, cy + 25, { steps: 12 });
+  await page.mouse.move(cx + 15, cy + 6, { steps: 12 });
   await page.mouse.up();
   await page.waitForTimeout(100);  // the last pose goes out on the next animation frame
   const after = await page.evaluate(() => ({ pose: dmmrViewer.pose(), seq: dmmrViewer.seq }));
