@@ -198,7 +198,18 @@ async function browserChecks(context, url, wrong, origin) {
   };
   check(ahead(after.pose) > 1 - 1e-9, `orbit: the target is still straight ahead (cos ${ahead(after.pose)})`);
 
-  await waitFor('a frame for the last pose of the drag', (s) => dmmrViewer.lastFrame.seq === s, after.seq);
+  // Wheel up zooms in (three.js's direction): 200 px, a distance factor of exp(-0.2).
+  await page.mouse.wheel(0, -200);
+  await page.waitForTimeout(100);
+  const zoomed = await page.evaluate(() => ({ pose: dmmrViewer.pose(), seq: dmmrViewer.seq }));
+  const ratio = dist(zoomed.pose) / dist(after.pose);
+  check(Math.abs(ratio - Math.exp(-0.2)) < 1e-9 && ahead(zoomed.pose) > 1 - 1e-9 &&
+        JSON.stringify(zoomed.pose.target) === JSON.stringify(before.target),
+    `orbit: the wheel zoomed towards the target (distance x ${ratio.toFixed(4)}, exp(-0.2) = 0.8187)`);
+  must(zoomed.seq === after.seq + 1, `the wheel sent one pose (${zoomed.seq - after.seq})`);
+  after.seq = zoomed.seq;
+
+  await waitFor('a frame for the last pose (the zoom after the drag)', (s) => dmmrViewer.lastFrame.seq === s, after.seq);
   const moved = await page.evaluate(() => {
     const c = document.getElementById('view');
     const now = c.getContext('2d').getImageData(0, 0, c.width, c.height).data, was = window.__baseline;
@@ -208,11 +219,11 @@ async function browserChecks(context, url, wrong, origin) {
     return { differ, pixels: now.length / 4, counts: dmmrViewer.counts };
   });
   check(moved.differ > moved.pixels / 20,
-    `the frame after the orbit differs from the first: ${moved.differ} of ${moved.pixels} pixels (over 5 %)`);
+    `the frame after the orbit and zoom differs from the first: ${moved.differ} of ${moved.pixels} pixels (over 5 %)`);
   check(moved.counts.jpeg >= 1, `frames while moving came as JPEG (${JSON.stringify(moved.counts)})`);
 
   // The exact frame for the last pose; the screenshot shows it with the overlay.
-  await waitFor('the still frame after the orbit', (s) => dmmrViewer.lastStill && dmmrViewer.lastStill.seq === s, after.seq);
+  await waitFor('the still frame after the orbit and zoom', (s) => dmmrViewer.lastStill && dmmrViewer.lastStill.seq === s, after.seq);
   const shot = path.join(args.out, 'viewer.png');
   await page.screenshot({ path: shot });
   check(fs.statSync(shot).size > 1000, `screenshot ${shot}`);
