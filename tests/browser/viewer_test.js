@@ -207,9 +207,24 @@ async function browserChecks(context, url, wrong, origin) {
         JSON.stringify(zoomed.pose.target) === JSON.stringify(before.target),
     `orbit: the wheel zoomed towards the target (distance x ${ratio.toFixed(4)}, exp(-0.2) = 0.8187)`);
   must(zoomed.seq === after.seq + 1, `the wheel sent one pose (${zoomed.seq - after.seq})`);
-  after.seq = zoomed.seq;
 
-  await waitFor('a frame for the last pose (the zoom after the drag)', (s) => dmmrViewer.lastFrame.seq === s, after.seq);
+  // Right-drag pans: camera and target move together, across the view.
+  await page.mouse.move(cx, cy);
+  await page.mouse.down({ button: 'right' });
+  await page.mouse.move(cx - 10, cy + 5, { steps: 3 });
+  await page.mouse.up({ button: 'right' });
+  await page.waitForTimeout(100);
+  const panned = await page.evaluate(() => ({ pose: dmmrViewer.pose(), seq: dmmrViewer.seq }));
+  const shift = panned.pose.position.map((x, i) => x - zoomed.pose.position[i]);
+  const targetShift = panned.pose.target.map((x, i) => x - zoomed.pose.target[i]);
+  const across = shift.reduce((s, x, i) => s + x * forward(zoomed.pose.rotation)[i], 0);
+  check(Math.hypot(...shift) > 0 && shift.every((x, i) => Math.abs(x - targetShift[i]) < 1e-9 * dist(zoomed.pose)) &&
+        Math.abs(across) < 1e-9 * Math.hypot(...shift) &&
+        JSON.stringify(panned.pose.rotation) === JSON.stringify(zoomed.pose.rotation),
+    `orbit: the right-drag panned camera and target by ${Math.hypot(...shift).toFixed(3)} across the view`);
+  after.seq = panned.seq;
+
+  await waitFor('a frame for the last pose (the pan after the drag and zoom)', (s) => dmmrViewer.lastFrame.seq === s, after.seq);
   const moved = await page.evaluate(() => {
     const c = document.getElementById('view');
     const now = c.getContext('2d').getImageData(0, 0, c.width, c.height).data, was = window.__baseline;
@@ -219,11 +234,11 @@ async function browserChecks(context, url, wrong, origin) {
     return { differ, pixels: now.length / 4, counts: dmmrViewer.counts };
   });
   check(moved.differ > moved.pixels / 20,
-    `the frame after the orbit and zoom differs from the first: ${moved.differ} of ${moved.pixels} pixels (over 5 %)`);
+    `the frame after the orbit, zoom and pan differs from the first: ${moved.differ} of ${moved.pixels} pixels (over 5 %)`);
   check(moved.counts.jpeg >= 1, `frames while moving came as JPEG (${JSON.stringify(moved.counts)})`);
 
   // The exact frame for the last pose; the screenshot shows it with the overlay.
-  await waitFor('the still frame after the orbit and zoom', (s) => dmmrViewer.lastStill && dmmrViewer.lastStill.seq === s, after.seq);
+  await waitFor('the still frame after the orbit, zoom and pan', (s) => dmmrViewer.lastStill && dmmrViewer.lastStill.seq === s, after.seq);
   const shot = path.join(args.out, 'viewer.png');
   await page.screenshot({ path: shot });
   check(fs.statSync(shot).size > 1000, `screenshot ${shot}`);
@@ -278,6 +293,17 @@ async function browserChecks(context, url, wrong, origin) {
   const stepLen = Math.hypot(...step);
   check(stepLen > 0 && step.reduce((s, x, i) => s + x * fwd[i], 0) > 0.999 * stepLen,
     `fly: W moved the camera ${stepLen.toFixed(3)} along its view direction`);
+  // Dragging in fly mode turns the camera in place; right is right.
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + 20, cy, { steps: 3 });
+  await page.mouse.up();
+  const looked = await page.evaluate(() => dmmrViewer.pose());
+  const f0 = forward(flyTo.rotation), f1 = forward(looked.rotation);
+  const turnedRight = (f0[0] * f1[1] - f0[1] * f1[0]) < 0;  // about +Z: clockwise seen from above
+  check(JSON.stringify(looked.position) === JSON.stringify(flyTo.position) && turnedRight &&
+        Math.abs(f1[2] - f0[2]) < 1e-9,
+    'fly: dragging right turned the view right about the up axis, in place');
   await page.keyboard.press('h');
   const homeAgain = await page.evaluate(() => ({ pose: dmmrViewer.pose(), hello: dmmrViewer.hello.home }));
   check(JSON.stringify(homeAgain.pose.position) === JSON.stringify(homeAgain.hello.position),
