@@ -1,5 +1,6 @@
 #include "server.h"
 
+#include <unistd.h>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -638,7 +639,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   if (opts.serve) {
     try {
       hub = makeHub(opts, scene, path, clients, near);
-      std::fprintf(stderr, "dmmr-render: serving %s\n", hub->start().c_str());
+      std::fprintf(stderr,
+                   "dmmr-render: serving %s (server pid %d: SIGINT or SIGTERM to it ends the "
+                   "run in order)\n",
+                   hub->start().c_str(), int(::getpid()));
     } catch (const std::exception& e) {
       std::fprintf(stderr, "dmmr-render: server (rank 0): %s\n", e.what());
       shutdownClients(comm, clients, opts.client_timeout_s);
