@@ -207,9 +207,9 @@ int main(int argc, char** argv) {
   put("viewer", "ack.bin", message(0, encodeAck(7)));
   put("viewer", "frame.bin",
       message(1, encodeFrameMessage({FrameEncoding::Png, R"({"frame":1})", {1, 2, 3}})));
-  Image small = Image::blank(8, 8);
-  for (size_t i = 0; i < small.rgba.size(); ++i) small.rgba[i] = uint8_t(i * 13);
-  put("viewer", "small.jpg", message(2, encodeJpeg(small, 50)));
+  Image tiny = Image::blank(8, 8);
+  for (size_t i = 0; i < tiny.rgba.size(); ++i) tiny.rgba[i] = uint8_t(i * 13);
+  put("viewer", "small.jpg", message(2, encodeJpeg(tiny, 50)));
 
   Image rgba = Image::blank(3, 2);
   for (size_t i = 0; i < rgba.rgba.size(); ++i) rgba.rgba[i] = uint8_t(i * 37);
