@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Interactive mode (issue 17): dmmr-pose-replay streams a walkthrough at 60 Hz
 # as live poses to `dmmr-render --serve` (a head-mounted display's rate), on
-# the medium scale's plants4 and monuments25 (512x384), with 1 and 2 clients.
+# the medium scale's plants4 and monuments25 (512x384), with 1 and 2 clients
+# (and 2 clients with 2 frames in flight).
 # Per configuration:
 #   - a walkthrough run of the same path (dmmr-render, default pipeline, 3
 #     frames in flight): its frame time, what the latency is held against;
@@ -38,17 +39,24 @@ stop_server() {
 }
 trap stop_server EXIT
 
-for name in plants4 monuments25; do
+# name|clients|frames in flight while serving (1, the default, or 2: a
+# pipeline across server and clients, which a cluster has the cores for)
+configs=("plants4|1|1" "plants4|2|1" "plants4|2|2" "monuments25|1|1" "monuments25|2|1"
+  "monuments25|2|2")
+for c in "${configs[@]}"; do
+  IFS='|' read -r name n inflight <<<"$c"
   sc=out/bench/$name.scene
   path=out/bench/$name.generated.path
-  for n in 1 2; do
-    tag=$name-c$n
+  tag=$name-c$n-f$inflight
+  if [ ! -f "$out/$name-c$n-walk.csv" ]; then
     "${launch[@]}" -np $((n + 1)) $bin/dmmr-render --scene $sc --walkthrough $path \
-      --out "$out/$tag-walk" --stats "$out/$tag-walk.csv" --width "$w" --height "$h" \
+      --out "$out/$name-c$n-walk" --stats "$out/$name-c$n-walk.csv" --width "$w" --height "$h" \
       --no-progress >/dev/null
+  fi
+  {
     "${launch[@]}" -np $((n + 1)) $bin/dmmr-render --scene $sc --walkthrough $path \
       --serve 127.0.0.1:0 --stats "$out/$tag-serve.csv" --width "$w" --height "$h" \
-      2>"$out/$tag-serve.log" &
+      --in-flight "$inflight" 2>"$out/$tag-serve.log" &
     mpirun_pid=$!
     url=""
     for _ in $(seq 1 600); do
@@ -63,6 +71,6 @@ for name in plants4 monuments25; do
     $bin/dmmr-pose-replay --url "$url" --walkthrough $path --rate 60 --duration "$png_seconds" \
       --quality 0 --csv "$out/$tag-png.csv" --summary "$out/$tag-png.json" >/dev/null
     stop_server
-  done
+  }
 done
-python3 scripts/bench/interactive_report.py "$out"
+python3 scripts/bench/interactive_report.py "$out" "${configs[@]}"
