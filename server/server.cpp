@@ -1,5 +1,6 @@
 #include "server.h"
 
+#include <unistd.h>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -638,7 +639,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   if (opts.serve) {
     try {
       hub = makeHub(opts, scene, path, clients, near);
-      std::fprintf(stderr, "dmmr-render: serving %s\n", hub->start().c_str());
+      std::fprintf(stderr,
+                   "dmmr-render: serving %s (server pid %d: SIGINT or SIGTERM to it ends the "
+                   "run in order)\n",
+                   hub->start().c_str(), int(::getpid()));
     } catch (const std::exception& e) {
       std::fprintf(stderr, "dmmr-render: server (rank 0): %s\n", e.what());
       shutdownClients(comm, clients, opts.client_timeout_s);
@@ -699,8 +703,14 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         for (int k = 0; k < clients; ++k) {
-          jobs.push_back({k + 1, FrameJob{f, cam, v.width, v.height, plan.regions[size_t(k)].rect,
-                                          std::move(plan.regions[size_t(k)].objects)}});
+          jobs.push_back({k + 1, FrameJob{f,
+                                          cam,
+                                          v.width,
+                                          v.height,
+                                          plan.regions[size_t(k)].rect,
+                                          std::move(plan.regions[size_t(k)].objects),
+                                          true,
+                                          {}}});
           if (opts.visible_weights)
             jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
         }
@@ -711,7 +721,8 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         auto job = [&](size_t t) {
-          FrameJob j{f, cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t])};
+          FrameJob j{f,    cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t]),
+                     true, {}};
           if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
           return j;
         };

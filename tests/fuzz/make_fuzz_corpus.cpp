@@ -10,7 +10,9 @@
 #include "bytes.h"
 #include "formats.h"
 #include "image.h"
+#include "jpeg.h"
 #include "protocol.h"
+#include "viewer_protocol.h"
 #include "walkthrough.h"
 
 namespace fs = std::filesystem;
@@ -191,6 +193,23 @@ int main(int argc, char** argv) {
   SubFrame other = sub;
   other.region = {2, 0, 2, 1};
   put("protocol", "batch.bin", message(3, encodeSubFrames({sub, other})));
+
+  // Viewer messages (interactive mode), behind the selector byte: 0 a
+  // viewer's message, 1 a frame message, 2 a JPEG.
+  Pose pose;
+  pose.seq = 5;
+  pose.time_ms = 1234.5;
+  pose.position = {1, 2, 3};
+  pose.rotation = {0, 0.70710678, 0, 0.70710678};
+  pose.width = 640;
+  pose.height = 480;
+  put("viewer", "pose.bin", message(0, encodePose(pose)));
+  put("viewer", "ack.bin", message(0, encodeAck(7)));
+  put("viewer", "frame.bin",
+      message(1, encodeFrameMessage({FrameEncoding::Png, R"({"frame":1})", {1, 2, 3}})));
+  Image tiny = Image::blank(8, 8);
+  for (size_t i = 0; i < tiny.rgba.size(); ++i) tiny.rgba[i] = uint8_t(i * 13);
+  put("viewer", "small.jpg", message(2, encodeJpeg(tiny, 50)));
 
   Image rgba = Image::blank(3, 2);
   for (size_t i = 0; i < rgba.rgba.size(); ++i) rgba.rgba[i] = uint8_t(i * 37);
