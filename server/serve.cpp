@@ -477,7 +477,11 @@ void ViewerHub::Impl::encoderLoop() {
       if (v == viewers.end()) continue;
       v->second.last = e.frame;
       v->second.last_pose = e.pose;
-      switch (schedule.rendered(e.viewer, e.frame->frame, e.pose.seq)) {
+      ViewerSchedule::Delivery delivery = schedule.rendered(e.viewer, e.frame->frame, e.pose.seq);
+      // The viewer has room in the pipeline again: a pose that came while
+      // this frame rendered can go now.
+      plan_cv.notify_all();
+      switch (delivery) {
         case ViewerSchedule::Delivery::Send:
           sendTo(e.viewer, std::move(bytes));
           break;

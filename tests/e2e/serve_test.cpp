@@ -258,6 +258,29 @@ TEST(Serve, AViewerHasOneFrameInFlightAndGetsTheLatestWhenItAcks) {
   EXPECT_EQ(s.stop(), 0) << s.log();
 }
 
+TEST(Serve, APoseThatComesWhileTheViewersFrameRendersIsRenderedNext) {
+  // The second pose arrives while the first renders (the viewer's one slot
+  // in the pipeline taken); when that frame is done it must go at once, not
+  // wait for a third pose.
+  Served s(1);
+  ViewerClient v(s.url);
+  const auto& pts = plant().walk.points;
+  v.sendPose(poseAt(pts[0], 1));
+  v.sendPose(poseAt(pts[6], 2));
+  ViewerClient::Received a = frameWithin(v, 30);
+  ASSERT_EQ(a.kind, Kind::Frame) << s.log();
+  ViewerClient::Received b = frameWithin(v, 10);
+  if (a.header.value("seq", 0u) == 1u) {
+    ASSERT_EQ(b.kind, Kind::Frame) << "no frame for the pose that came during a render";
+    EXPECT_EQ(b.header.value("seq", 0u), 2u);
+    EXPECT_FALSE(b.header.value("still", true));
+  }
+  ViewerClient::Received still = stillWithin(v, 10);
+  ASSERT_EQ(still.kind, Kind::Frame);
+  EXPECT_EQ(still.header.value("seq", 0u), 2u);
+  EXPECT_EQ(s.stop(), 0) << s.log();
+}
+
 TEST(Serve, MalformedOversizedAndTooFastViewersAreCutOffWhileTheRunGoesOn) {
   Served s(1, "--serve-max-rate 30");
   const auto& pts = plant().walk.points;
