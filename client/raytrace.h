@@ -1,0 +1,93 @@
+// Ray-traced rendering on the clients (the Sensors 2022 paper's renderer):
+// Embree over the same scene, objects and camera as the raster path, no GL.
+// One BVH per unique geometry (RtMesh), built when the geometry is loaded and
+// shared by every instance; a top level over the frame's objects, rebuilt
+// per frame with transforms made camera-relative in double first (as the
+// raster path does), so that scenes far from the origin keep precision.
+//
+// Shading with every effect off is the raster shader's (common/draw.cpp):
+// two-sided headlight, base = diffuse * vertex colour * texture, colour =
+// base * (0.3 + 0.7 |n . v|), facet normal where a mesh has none, the same
+// background. Pixels differ from the raster frame only where sampling does:
+// a pixel's one primary ray through its centre against the rasteriser's
+// coverage rules at edges, and textures sampled bilinearly from the full
+// image where GL uses mipmaps (docs/raytrace.md).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "camera.h"
+#include "draw.h"
+#include "formats.h"
+
+namespace dmmr {
+
+// Embree's BVH build quality and layout (docs/benchmarks.md compares their
+// bytes per triangle and speed).
+enum class BvhQuality { Low, Medium, High };
+
+struct RayOptions {
+  // Hard shadows from a directional light (`light`, the direction towards
+  // it, world space): lit surfaces get 0.3 + 0.7 max(n . l, 0), shadowed
+  // ones 0.3 (ambient). Off: the headlight shading above.
+  bool shadows = false;
+  Vec3d light = {0.3, 0.4, 0.866};
+  // Mirror reflection and refraction for objects whose effect says so
+  // (RtInstance::effect), each bounce bounded by max_depth.
+  bool reflections = false;
+  int max_depth = 4;
+  BvhQuality quality = BvhQuality::Medium;
+  bool compact = false;  // Embree's compact BVH layout (less memory, slower)
+};
+
+enum class SurfaceEffect : uint8_t { None = 0, Mirror = 1, Glass = 2 };
+
+// One unique geometry, ready for rays: its BVH and what shading needs
+// (normals, colours, texture coordinates, submesh materials).
+class RtMesh {
+ public:
+  virtual ~RtMesh() = default;
+  // Bytes held: the BVH (Embree's reported size) plus the vertex and index
+  // copies; what the cache's device level counts.
+  virtual uint64_t bytes() const = 0;
+  virtual uint64_t bvhBytes() const = 0;
+  virtual uint64_t triangles() const = 0;
+};
+
+struct RtInstance {
+  const RtMesh* mesh = nullptr;
+  Mat4d object_to_world;
+  SurfaceEffect effect = SurfaceEffect::None;
+};
+
+class RayTracer {
+ public:
+  // `threads`: the threads Embree and the tracer may use (0: every CPU this
+  // process may run on, see affinity.h).
+  explicit RayTracer(int threads = 0);
+  ~RayTracer();
+  RayTracer(const RayTracer&) = delete;
+  RayTracer& operator=(const RayTracer&) = delete;
+
+  // Builds `g`'s BVH. Throws Error when Embree fails (out of memory).
+  std::unique_ptr<RtMesh> build(const GeometryData& g, BvhQuality quality = BvhQuality::Medium,
+                                bool compact = false);
+
+  // Renders `region` of a width x height frame: one primary ray through each
+  // pixel's centre, into `rgba` (region-sized, RGBA8, bottom row first, as
+  // Renderer::readPixels gives). `textures[i]` is texture file i (null:
+  // untextured). Instances are in ascending object order (as the raster
+  // path draws them; exact distance ties are rare and count in the error).
+  void render(const Camera& camera, int width, int height, const Rect& region,
+              const std::vector<RtInstance>& instances,
+              const std::vector<const TextureData*>& textures, const RayOptions& opts,
+              std::vector<uint8_t>* rgba, Rgb background = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dmmr
