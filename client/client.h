@@ -12,6 +12,7 @@
 #include "compress.h"
 #include "gl_context.h"
 #include "mpi_comm.h"
+#include "raytrace.h"
 #include "visibility.h"
 
 namespace dmmr {
@@ -28,6 +29,14 @@ struct ClientOptions {
   // Benchmark mode: when set, every GL stage holds an exclusive lock on this
   // file while it works on a job (stage_turns.h), so stages run one at a time.
   std::string stage_turns;
+  // Ray-trace instead of rasterising (raytrace.h): no GL context at all; the
+  // render stage traces the region's objects (no occlusion culling: a ray
+  // finds the nearest surface itself), their BVHs in the device level under
+  // cache.gpu_budget.
+  bool raytrace = false;
+  RayOptions ray;
+  // Surface effects by object index (empty: none), for ray.reflections.
+  std::vector<SurfaceEffect> effects;
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.
