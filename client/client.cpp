@@ -18,6 +18,7 @@
 #include "cpu_time.h"
 #include "depth_pyramid.h"
 #include "draw.h"
+#include "effects.h"
 #include "error.h"
 #include "gpu_cache.h"
 #include "guarded.h"
@@ -699,7 +700,8 @@ struct RayStage {
 
 class RenderStage {
  public:
-  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts, StageControl& control)
+  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts, StageControl& control,
+              std::vector<SurfaceEffect> effects = {})
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
@@ -707,7 +709,7 @@ class RenderStage {
         host_before_(host.stats()),
         rank_(opts.rank),
         ray_opts_(opts.ray),
-        effects_(opts.effects) {
+        effects_(effects) {
     if (opts.raytrace)
       ray_ = std::make_unique<RayStage>(scene, host, opts);
     else
@@ -950,9 +952,19 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
 
   std::string problem;
   Scene scene;
+  std::vector<SurfaceEffect> effects;
   std::unique_ptr<HostCache> host;
   try {
-    scene = loadScene(opts.scene, /*with_skeleton=*/false);
+    // The skeleton's names choose the ray tracer's effects; otherwise
+    // clients never traverse it.
+    bool named =
+        opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
+    scene = loadScene(opts.scene, /*with_skeleton=*/named);
+    if (named) {
+      effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);
+      scene.skeleton.clear();
+      scene.skeleton.shrink_to_fit();
+    }
     host = std::make_unique<HostCache>(
         scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   } catch (const std::exception& e) {
@@ -1005,8 +1017,9 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
           visible.close();
         });
     renderThread = startStage<RenderStage>(
-        [&] { return std::make_unique<RenderStage>(scene, *host, opts, control); }, renderLoop,
-        &renderReady, [&](const std::string& what) { failure.fail("render stage: " + what); },
+        [&] { return std::make_unique<RenderStage>(scene, *host, opts, control, effects); },
+        renderLoop, &renderReady,
+        [&](const std::string& what) { failure.fail("render stage: " + what); },
         [&] {
           while (visible.pop()) {
           }

@@ -35,8 +35,9 @@ struct ClientOptions {
   // cache.gpu_budget.
   bool raytrace = false;
   RayOptions ray;
-  // Surface effects by object index (empty: none), for ray.reflections.
-  std::vector<SurfaceEffect> effects;
+  // Objects that reflect (mirror) or refract (glass) under ray.reflections,
+  // by node name (effects.h).
+  std::vector<std::string> mirror, glass;
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.

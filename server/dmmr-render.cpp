@@ -126,6 +126,10 @@ int main(int argc, char** argv) {
   app.add_option("--bvh-quality", bvhQuality, "raytrace: Embree build quality")
       ->check(CLI::IsMember({"low", "medium", "high"}));
   app.add_flag("--bvh-compact", c.ray.compact, "raytrace: Embree's compact BVH layout");
+  app.add_option("--mirror", c.mirror,
+                 "raytrace --reflections: objects that mirror, by node name (glob; an object "
+                 "matches when its node or any node above it does)");
+  app.add_option("--glass", c.glass, "raytrace --reflections: objects that refract, by node name");
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
