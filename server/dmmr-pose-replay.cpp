@@ -28,6 +28,8 @@ struct PoseRecord {
   std::string encoding;
   uint64_t bytes = 0;
   double encode_ms = 0, server_latency_ms = 0;
+  // The server's split of the latency (docs/interactive.md, frame header).
+  double pose_wait_ms = 0, pick_to_done_ms = 0, done_to_send_ms = 0;
 };
 
 double percentile(std::vector<double> v, double p) {
@@ -105,6 +107,9 @@ int main(int argc, char** argv) {
       p.bytes = r.frame.image.size();
       p.encode_ms = encode_ms;
       p.server_latency_ms = h["server"].value("latency_ms", 0.0);
+      p.pose_wait_ms = h["server"].value("pose_wait_ms", 0.0);
+      p.pick_to_done_ms = h["server"].value("pick_to_done_ms", 0.0);
+      p.done_to_send_ms = h["server"].value("done_to_send_ms", 0.0);
     };
 
     dmmr::Pose last;
@@ -156,7 +161,8 @@ int main(int argc, char** argv) {
       }
     if (!csv.empty()) {
       std::ostringstream o;
-      o << "seq,sent_ms,served,latency_ms,frame,encoding,bytes,encode_ms,server_latency_ms\n";
+      o << "seq,sent_ms,served,latency_ms,frame,encoding,bytes,encode_ms,server_latency_ms,"
+           "pose_wait_ms,pick_to_done_ms,done_to_send_ms\n";
       o.setf(std::ios::fixed);
       o.precision(3);
       for (size_t i = 0; i < poses; ++i) {
@@ -164,9 +170,10 @@ int main(int argc, char** argv) {
         o << i + 1 << "," << r.sent_ms - rec[0].sent_ms << "," << int(r.served) << ",";
         if (r.served)
           o << r.latency_ms << "," << r.frame << "," << r.encoding << "," << r.bytes << ","
-            << r.encode_ms << "," << r.server_latency_ms;
+            << r.encode_ms << "," << r.server_latency_ms << "," << r.pose_wait_ms << ","
+            << r.pick_to_done_ms << "," << r.done_to_send_ms;
         else
-          o << ",,,,,";
+          o << ",,,,,,,,";
         o << "\n";
       }
       std::string s = o.str();

@@ -130,6 +130,8 @@ struct ViewerHub::Impl {
   struct Picked {
     uint64_t viewer;
     Pose pose;
+    double wait_ms;  // from the pose's arrival to its pick
+    double picked_ms;
   };
   std::map<uint32_t, Picked> picked;  // frame -> the viewer and pose it renders
   struct Viewer {
@@ -145,6 +147,7 @@ struct ViewerHub::Impl {
     std::shared_ptr<const FrameDone> frame;
     uint64_t viewer;
     Pose pose;
+    double wait_ms, picked_ms, done_ms;
   };
   std::deque<Encode> encodes;
 
@@ -178,7 +181,9 @@ struct ViewerHub::Impl {
   void sendTo(uint64_t id, Bytes bytes);  // any thread: posts to the network thread
 
   void encoderLoop();
-  Bytes encodeFrame(const FrameDone& d, const Pose& pose, uint8_t quality, bool still);
+  // `e`: a moving frame's timings (null for a still frame).
+  Bytes encodeFrame(const FrameDone& d, const Pose& pose, uint8_t quality, bool still,
+                    const Encode* e = nullptr);
 };
 
 namespace {
@@ -372,6 +377,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void ViewerHub::Impl::accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec) return;  // closed: stopping
+    // Small messages (poses, acks, a frame's last segment) must not wait for
+    // the peer's delayed ACK (Nagle): that added 20 ms to every pose here.
+    beast::error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
     std::make_shared<HttpSession>(std::move(socket), *this)->run();
     accept();
   });
@@ -415,7 +424,7 @@ void ViewerHub::Impl::sendTo(uint64_t id, Bytes bytes) {
 }
 
 Bytes ViewerHub::Impl::encodeFrame(const FrameDone& d, const Pose& pose, uint8_t quality,
-                                   bool still) {
+                                   bool still, const Encode* e) {
   auto t0 = Clock::now();
   bool png = still || quality == 0;
   FrameMessage m;
@@ -449,7 +458,12 @@ Bytes ViewerHub::Impl::encodeFrame(const FrameDone& d, const Pose& pose, uint8_t
                         {"assemble_ms", d.assemble_ms},
                         {"encode_ms", encode_ms},
                         {"frame_ms", d.frame_ms},
-                        {"latency_ms", d.latency_ms}}},
+                        {"latency_ms", d.latency_ms},
+                        // Where a pose's time goes outside the pipeline:
+                        // waiting to be picked, and from assembled to sent.
+                        {"pose_wait_ms", e ? e->wait_ms : 0.0},
+                        {"pick_to_done_ms", e ? e->done_ms - e->picked_ms : 0.0},
+                        {"done_to_send_ms", e ? nowMs() - e->done_ms : 0.0}}},
                       {"triangles", d.triangles},
                       {"clients", clients}};
   m.header = h.dump();
@@ -471,7 +485,7 @@ void ViewerHub::Impl::encoderLoop() {
       if (v == viewers.end()) continue;  // left meanwhile
       uint8_t quality = v->second.quality;
       lock.unlock();
-      Bytes bytes = encodeFrame(*e.frame, e.pose, quality, false);
+      Bytes bytes = encodeFrame(*e.frame, e.pose, quality, false, &e);
       lock.lock();
       v = viewers.find(e.viewer);
       if (v == viewers.end()) continue;
@@ -545,7 +559,8 @@ std::optional<Pose> ViewerHub::nextPose(uint32_t frame) {
   for (;;) {
     if (h.stopped) return std::nullopt;
     if (auto pick = h.schedule.next()) {
-      h.picked[frame] = {pick->viewer, pick->pose};
+      double now = nowMs();
+      h.picked[frame] = {pick->viewer, pick->pose, now - pick->received_ms, now};
       return pick->pose;
     }
     h.plan_cv.wait(lock);
@@ -557,8 +572,12 @@ void ViewerHub::frameDone(FrameDone d) {
   std::lock_guard<std::mutex> lock(h.mu);
   auto it = h.picked.find(d.frame);
   if (it == h.picked.end()) return;
-  Impl::Encode e{std::make_shared<const FrameDone>(std::move(d)), it->second.viewer,
-                 it->second.pose};
+  Impl::Encode e{std::make_shared<const FrameDone>(std::move(d)),
+                 it->second.viewer,
+                 it->second.pose,
+                 it->second.wait_ms,
+                 it->second.picked_ms,
+                 nowMs()};
   h.picked.erase(it);
   h.encodes.push_back(std::move(e));
   h.encode_cv.notify_all();

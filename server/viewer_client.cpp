@@ -131,6 +131,8 @@ ViewerClient::ViewerClient(const ServeUrl& at, const std::string& token, double 
         beast::get_lowest_layer(c.ws).async_connect(
             r, [&](beast::error_code ec, const tcp::endpoint&) {
               if (ec) return void((failed = ec, done = true));
+              beast::error_code ignored;  // no Nagle delay on poses and acks
+              beast::get_lowest_layer(c.ws).socket().set_option(tcp::no_delay(true), ignored);
               c.ws.async_handshake(res, at.host + ":" + at.port, target, [&](beast::error_code ec) {
                 failed = ec;
                 done = true;

@@ -35,7 +35,7 @@ std::optional<ViewerSchedule::Pick> ViewerSchedule::next() {
     v.picked_seq = v.latest->seq;
     ++v.rendering;
     last_picked_ = start->first;
-    return Pick{start->first, *v.latest};
+    return Pick{start->first, *v.latest, v.latest_ms};
   }
   return std::nullopt;
 }

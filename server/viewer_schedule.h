@@ -40,6 +40,7 @@ class ViewerSchedule {
   struct Pick {
     uint64_t viewer = 0;
     Pose pose;
+    double received_ms = 0;  // when the pose came (pose()'s now_ms)
     friend bool operator==(const Pick&, const Pick&) = default;
   };
   // The next pose to render, the next viewer in turn after the last one
