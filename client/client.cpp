@@ -685,7 +685,7 @@ class VisibilityStage {
 // The render stage's ray tracer and its device level (--renderer raytrace).
 struct RayStage {
   RayStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
-      : tracer(0),
+      : tracer(opts.ray_threads),
         meshes(
             scene, host,
             [this, q = opts.ray.quality, compact = opts.ray.compact](const GeometryData& g) {

@@ -35,6 +35,11 @@ struct ClientOptions {
   // cache.gpu_budget.
   bool raytrace = false;
   RayOptions ray;
+  // Threads the ray tracer traces on, the render stage's own included (0:
+  // every CPU the process may use). 1 traces on the stage thread alone, so
+  // that its CPU time (render_cpu_ms) is the whole cost, free of waiting
+  // for a core (the benchmarks' contention-free mode).
+  int ray_threads = 0;
   // Objects that reflect (mirror) or refract (glass) under ray.reflections,
   // by node name (effects.h).
   std::vector<std::string> mirror, glass;

@@ -126,6 +126,10 @@ int main(int argc, char** argv) {
   app.add_option("--bvh-quality", bvhQuality, "raytrace: Embree build quality")
       ->check(CLI::IsMember({"low", "medium", "high"}));
   app.add_flag("--bvh-compact", c.ray.compact, "raytrace: Embree's compact BVH layout");
+  app.add_option("--ray-threads", c.ray_threads,
+                 "raytrace: threads per client, its render stage's included (0: every CPU it "
+                 "may use; 1: the stage thread alone, whose CPU time is then the whole cost)")
+      ->check(CLI::Range(0, 1024));
   app.add_option("--mirror", c.mirror,
                  "raytrace --reflections: objects that mirror, by node name (glob; an object "
                  "matches when its node or any node above it does)");
