@@ -2,8 +2,8 @@
 // plant, with fake meshes whose bytes are known: instances share one build,
 // the level keeps within its budget, a mesh evicted while its frame is being
 // gathered lives until the frame lets go of it, unreadable files give no
-// mesh. The real BVHs' bytes are checked against the budget in
-// raytrace_test.
+// mesh; and with the real ray tracer, the BVHs' bytes are what the budget
+// counts.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -159,4 +159,35 @@ TEST(RtCache, AnUnreadableGeometryGivesNoMeshAndIsNamed) {
   EXPECT_NE(cache.acquire(0), nullptr);
   EXPECT_EQ(host.stats().skipped, 1u);
   EXPECT_EQ(l.built, 1);
+}
+
+// With the real ray tracer: what the level holds is the BVHs' and their
+// attributes' bytes as each mesh reports them, and a budget bounds them.
+TEST(RtCache, RealBvhBytesCountInTheBudget) {
+  PlantFixture& p = plant();
+  HostCache host(p.scene, {});
+  RayTracer tracer(1);
+  auto build = [&tracer](const GeometryData& g) { return tracer.build(g); };
+  const uint32_t n = uint32_t(p.scene.manifest.geometries);
+  uint64_t sum = 0;
+  {
+    RtCache all(p.scene, host, build);
+    for (uint32_t g = 0; g < n; ++g) {
+      auto m = all.acquire(g);
+      ASSERT_TRUE(m);
+      EXPECT_GT(m->bvhBytes(), 0u) << "geometry " << g;
+      EXPECT_GE(m->bytes(), m->bvhBytes());
+      sum += m->bytes();
+    }
+    EXPECT_EQ(all.stats().resident, sum);
+    EXPECT_EQ(all.stats().built_bytes, sum);
+  }
+  RtCache limited(p.scene, host, build, sum / 4);
+  for (int round = 0; round < 2; ++round)
+    for (uint32_t g = 0; g < n; ++g) {
+      limited.nextFrame();
+      ASSERT_TRUE(limited.acquire(g));
+      ASSERT_LE(limited.stats().resident, sum / 4);
+    }
+  EXPECT_GT(limited.stats().built_bytes, sum) << "evicted meshes were built again";
 }
