@@ -682,6 +682,10 @@ void RayTracer::render(const Camera& camera, int width, int height, const Rect& 
       throw Error("ray tracer: too many objects (" + std::to_string(instances.size()) + ")");
     while (im.slots.size() < instances.size()) {
       RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
+      if (!g) {
+        d.check("creating an instance");
+        throw Error("Embree: creating an instance failed");
+      }
       rtcSetGeometryInstancedScene(g, im.empty);
       rtcCommitGeometry(g);
       rtcAttachGeometryByID(im.top, g, unsigned(im.slots.size()));
