@@ -340,9 +340,17 @@ std::unique_ptr<RtMesh> RayTracer::build(const GeometryData& g, BvhQuality quali
   if (nv >= (uint64_t(1) << 32)) throw Error("ray tracer: too many vertices");
   auto m = std::make_unique<EmbreeMesh>(impl_->dev);
   bool textured = false;
+  uint64_t total = 0;
   for (const SubMesh& s : g.submeshes) {
     if (s.index_count % 3 != 0 || uint64_t(s.first_index) + s.index_count > g.indices.size())
       throw Error("ray tracer: a submesh's index range lies outside the geometry's indices");
+    total += s.index_count;
+  }
+  if (total / 3 >= RTC_INVALID_GEOMETRY_ID) throw Error("ray tracer: too many triangles");
+  // One spare index of capacity: Embree may read the last triangle's three
+  // indices with a 16-byte load, as it does vertices.
+  m->indices.reserve(size_t(total) + 1);
+  for (const SubMesh& s : g.submeshes) {
     m->indices.insert(m->indices.end(), g.indices.begin() + s.first_index,
                       g.indices.begin() + s.first_index + s.index_count);
     m->submesh_end.push_back(uint32_t(m->indices.size() / 3));
@@ -357,9 +365,8 @@ std::unique_ptr<RtMesh> RayTracer::build(const GeometryData& g, BvhQuality quali
   m->normals = g.normals;
   m->colors = g.colors;
   if (textured) m->texcoords = g.texcoords;
-  m->indices.shrink_to_fit();
   m->copy_bytes = (m->positions.size() + m->normals.size() + m->texcoords.size()) * 4 +
-                  m->colors.size() + m->indices.size() * 4 +
+                  m->colors.size() + m->indices.capacity() * 4 +
                   m->submeshes.size() * (sizeof(SubMesh) + 4);
 
   const size_t ntri = m->indices.size() / 3;
