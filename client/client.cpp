@@ -18,6 +18,7 @@
 #include "cpu_time.h"
 #include "depth_pyramid.h"
 #include "draw.h"
+#include "effects.h"
 #include "error.h"
 #include "gpu_cache.h"
 #include "guarded.h"
@@ -25,6 +26,7 @@
 #include "image.h"
 #include "protocol.h"
 #include "queue.h"
+#include "rt_cache.h"
 #include "scene.h"
 #include "stage_turns.h"
 
@@ -680,19 +682,41 @@ class VisibilityStage {
   std::unique_ptr<StageTurns> turns_;
 };
 
+// The render stage's ray tracer and its device level (--renderer raytrace).
+struct RayStage {
+  RayStage(const Scene& scene, HostCache& host, const ClientOptions& opts)
+      : tracer(opts.ray_threads),
+        meshes(
+            scene, host,
+            [this, q = opts.ray.quality, compact = opts.ray.compact](const GeometryData& g) {
+              return tracer.build(g, q, compact);
+            },
+            opts.cache.gpu_budget, opts.cache.eviction) {}
+  RayTracer tracer;
+  RtCache meshes;
+  std::vector<RtInstance> instances;                  // the frame's, kept across frames
+  std::vector<std::shared_ptr<const RtMesh>> pinned;  // alive until the frame is drawn
+};
+
 class RenderStage {
  public:
-  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts, StageControl& control)
+  RenderStage(const Scene& scene, HostCache& host, const ClientOptions& opts, StageControl& control,
+              std::vector<SurfaceEffect> effects = {})
       : scene_(scene),
         host_(host),
         codec_(opts.codec),
-        gl_(scene, host, opts.render_context, opts.view, opts.cache),
         control_(control),
         host_before_(host.stats()),
-        rank_(opts.rank) {
-    if (opts.visibility.method != VisibilityMethod::Off &&
+        rank_(opts.rank),
+        ray_opts_(opts.ray),
+        effects_(effects) {
+    if (opts.raytrace)
+      ray_ = std::make_unique<RayStage>(scene, host, opts);
+    else
+      gl_ = std::make_unique<GlStage>(scene, host, opts.render_context, opts.view, opts.cache);
+    if (!opts.raytrace && opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
-      culler_ = std::make_unique<Culler>(scene, opts.visibility, gl_);
+      culler_ = std::make_unique<Culler>(scene, opts.visibility, *gl_);
     if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
     slow_ = slowFactor(opts.rank);
   }
@@ -702,27 +726,33 @@ class RenderStage {
     injectFault("render", job.frame);
     StageTurns::Hold turn(turns_.get());
     double cpu0 = threadCpuMs();
-    // Per job: under tiles each tile is a frame for eviction, on purpose
-    // (docs/architecture.md, "Geometry cache").
-    gl_.meshes.nextFrame();
-    host_.nextFrame();
-    GpuCacheStats gpu_before = gl_.meshes.stats();
     SubFrame out;
     out.frame = job.frame;
     out.region = job.region;
     out.stats = v.stats;
     ClientStats& st = out.stats;
     st.pass_ms = msSince(v.ready);  // from list ready to the render stage taking it
+    if (ray_) {
+      trace(v, st);
+      out.drawn = v.visible;
+      finishSubFrame(job, cpu0, out);
+      return out;
+    }
+    // Per job: under tiles each tile is a frame for eviction, on purpose
+    // (docs/architecture.md, "Geometry cache").
+    gl_->meshes.nextFrame();
+    host_.nextFrame();
+    GpuCacheStats gpu_before = gl_->meshes.stats();
     auto t0 = Clock::now();
-    Renderer& r = gl_.renderer;
+    Renderer& r = gl_->renderer;
     r.beginFrame(job.camera, job.region);
     auto draw = [&](uint32_t index) -> uint64_t {
       const ObjectBounds& o = scene_.objects[index];
       auto tl = Clock::now();
-      const GpuMesh* mesh = gl_.meshes.acquire(o.geometry);
+      const GpuMesh* mesh = gl_->meshes.acquire(o.geometry);
       st.load_ms += msSince(tl);
       if (!mesh) return 0;  // unreadable geometry: skipped, counted
-      r.draw(*mesh, o.transform, o.box, gl_.meshes.textures());
+      r.draw(*mesh, o.transform, o.box, gl_->meshes.textures());
       return mesh->triangles;
     };
     bool fused_culled = v.fused && control_.culls(), culled = v.culled || fused_culled;
@@ -749,17 +779,8 @@ class RenderStage {
       while (threadCpuMs() < until) {
       }
     }
-    addGpuStats(st, gpu_before, gl_.meshes.stats());
-    // The host levels are shared by both stages; each sub-frame reports
-    // their activity since the previous one.
-    HostCacheStats h = host_.stats();
-    st.ram_hits = h.hits - host_before_.hits;
-    st.ram_misses = h.misses - host_before_.misses;
-    st.disk_bytes = h.disk_bytes - host_before_.disk_bytes;
-    st.uncached += h.uncached - host_before_.uncached;
-    st.skipped = h.skipped - host_before_.skipped;
-    st.ram_resident = h.resident;
-    host_before_ = h;
+    addGpuStats(st, gpu_before, gl_->meshes.stats());
+    addHostStats(st);
     double culling = fused_culled ? fused.prepare_ms + fused.retrieve_ms : 0;
     st.render_ms = msSince(t0) - st.load_ms - culling;
     // Deciding cost: the visibility stage's work, or the fused stage's
@@ -770,9 +791,71 @@ class RenderStage {
                                      regionTriangles(scene_, job.objects)});
     auto tr = Clock::now();
     r.readPixels(job.region, &rgba_);
+    st.readback_ms = msSince(tr);
+    out.drawn = drawn;  // lets the server weigh the next frames by what shows
+    finishSubFrame(job, cpu0, out);
+    return out;
+  }
+
+  void sent(double ms) { last_send_ms_ = ms; }
+
+ private:
+  // The host levels are shared by both stages; each sub-frame reports their
+  // activity since the previous one.
+  void addHostStats(ClientStats& st) {
+    HostCacheStats h = host_.stats();
+    st.ram_hits = h.hits - host_before_.hits;
+    st.ram_misses = h.misses - host_before_.misses;
+    st.disk_bytes = h.disk_bytes - host_before_.disk_bytes;
+    st.uncached += h.uncached - host_before_.uncached;
+    st.skipped = h.skipped - host_before_.skipped;
+    st.ram_resident = h.resident;
+    host_before_ = h;
+  }
+
+  // --renderer raytrace: every object of the list (nothing culls it), its
+  // BVH from the device level, traced into rgba_ (bottom row first, as a
+  // readback). The device level's counts go where the GPU level's do.
+  void trace(const VisibleJob& v, ClientStats& st) {
+    const FrameJob& job = v.job;
+    RayStage& rs = *ray_;
+    rs.meshes.nextFrame();
+    host_.nextFrame();
+    RtCacheStats before = rs.meshes.stats();
+    rs.instances.clear();
+    rs.pinned.clear();
+    for (uint32_t index : v.visible) {
+      const ObjectBounds& o = scene_.objects[index];
+      auto tl = Clock::now();
+      std::shared_ptr<const RtMesh> mesh = rs.meshes.acquire(o.geometry);
+      st.load_ms += msSince(tl);
+      if (!mesh) continue;  // unreadable geometry: skipped, counted
+      SurfaceEffect effect = index < effects_.size() ? effects_[index] : SurfaceEffect::None;
+      rs.instances.push_back({mesh.get(), o.transform, effect});
+      st.triangles += mesh->triangles();
+      rs.pinned.push_back(std::move(mesh));
+    }
+    auto tr = Clock::now();
+    rs.tracer.render(job.camera, job.width, job.height, job.region, rs.instances,
+                     rs.meshes.textures(), ray_opts_, &rgba_);
+    st.render_ms = msSince(tr);
+    rs.pinned.clear();  // meshes evicted during the gather are freed now
+    RtCacheStats after = rs.meshes.stats();
+    st.gpu_hits += after.hits - before.hits;
+    st.gpu_misses += after.misses - before.misses;
+    st.uncached += after.uncached - before.uncached;
+    st.gpu_resident += after.resident;
+    st.visible = rs.instances.size();
+    addHostStats(st);
+  }
+
+  // rgba_ holds the region's pixels: convert, compress, finish the stats.
+  void finishSubFrame(const FrameJob& job, double cpu0, SubFrame& out) {
+    ClientStats& st = out.stats;
+    auto tr = Clock::now();
     rgb_.resize(size_t(job.region.area()) * 3);
     rgbaToRgb(rgba_.data(), size_t(job.region.area()), rgb_.data());
-    st.readback_ms = msSince(tr);
+    st.readback_ms += msSince(tr);
     auto tc = Clock::now();
     out.codec = codec_;
     out.raw_size = rgb_.size();
@@ -782,20 +865,16 @@ class RenderStage {
     st.bytes_sent = out.data.size();
     st.render_cpu_ms = threadCpuMs() - cpu0;
     st.send_ms = last_send_ms_;
-    out.drawn = drawn;  // lets the server weigh the next frames by what shows
     std::string chosen = control_.finished(job.frame);
     if (!chosen.empty())
       std::fprintf(stderr, "dmmr-render: client rank %d: %s\n", rank_, chosen.c_str());
-    return out;
   }
 
-  void sent(double ms) { last_send_ms_ = ms; }
-
- private:
   const Scene& scene_;
   HostCache& host_;
   Codec codec_;
-  GlStage gl_;
+  std::unique_ptr<GlStage> gl_;    // rasterising
+  std::unique_ptr<RayStage> ray_;  // or ray-tracing
   StageControl& control_;
   std::unique_ptr<Culler> culler_;
   std::unique_ptr<StageTurns> turns_;
@@ -804,6 +883,8 @@ class RenderStage {
   int rank_;
   double last_send_ms_ = 0;
   std::vector<uint8_t> rgba_, rgb_;  // the readback's, kept across frames
+  RayOptions ray_opts_;
+  std::vector<SurfaceEffect> effects_;
 };
 
 // Sends the first error of any stage to the server; later stages drain their
@@ -871,9 +952,19 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
 
   std::string problem;
   Scene scene;
+  std::vector<SurfaceEffect> effects;
   std::unique_ptr<HostCache> host;
   try {
-    scene = loadScene(opts.scene, /*with_skeleton=*/false);
+    // The skeleton's names choose the ray tracer's effects; otherwise
+    // clients never traverse it.
+    bool named =
+        opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
+    scene = loadScene(opts.scene, /*with_skeleton=*/named);
+    if (named) {
+      effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);
+      scene.skeleton.clear();
+      scene.skeleton.shrink_to_fit();
+    }
     host = std::make_unique<HostCache>(
         scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   } catch (const std::exception& e) {
@@ -926,8 +1017,9 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
           visible.close();
         });
     renderThread = startStage<RenderStage>(
-        [&] { return std::make_unique<RenderStage>(scene, *host, opts, control); }, renderLoop,
-        &renderReady, [&](const std::string& what) { failure.fail("render stage: " + what); },
+        [&] { return std::make_unique<RenderStage>(scene, *host, opts, control, effects); },
+        renderLoop, &renderReady,
+        [&](const std::string& what) { failure.fail("render stage: " + what); },
         [&] {
           while (visible.pop()) {
           }

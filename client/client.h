@@ -12,6 +12,7 @@
 #include "compress.h"
 #include "gl_context.h"
 #include "mpi_comm.h"
+#include "raytrace.h"
 #include "visibility.h"
 
 namespace dmmr {
@@ -28,6 +29,20 @@ struct ClientOptions {
   // Benchmark mode: when set, every GL stage holds an exclusive lock on this
   // file while it works on a job (stage_turns.h), so stages run one at a time.
   std::string stage_turns;
+  // Ray-trace instead of rasterising (raytrace.h): no GL context at all; the
+  // render stage traces the region's objects (no occlusion culling: a ray
+  // finds the nearest surface itself), their BVHs in the device level under
+  // cache.gpu_budget.
+  bool raytrace = false;
+  RayOptions ray;
+  // Threads the ray tracer traces on, the render stage's own included (0:
+  // every CPU the process may use). 1 traces on the stage thread alone, so
+  // that its CPU time (render_cpu_ms) is the whole cost, free of waiting
+  // for a core (the benchmarks' contention-free mode).
+  int ray_threads = 0;
+  // Objects that reflect (mirror) or refract (glass) under ray.reflections,
+  // by node name (effects.h).
+  std::vector<std::string> mirror, glass;
 };
 
 // Runs until the server says Shutdown. Returns the process exit status.

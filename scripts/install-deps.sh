@@ -14,6 +14,7 @@ packages=(
   libturbojpeg0-dev libboost-dev  # interactive mode: JPEG frames, Boost.Beast
   libmeshoptimizer-dev libcli11-dev nlohmann-json3-dev
   libassimp-dev  # glTF, FBX, 3MF, OFF inputs
+  libembree-dev  # Embree 3: the clients' ray tracer (client/raytrace.h)
   googletest libgtest-dev
   clang libclang-rt-14-dev
   libasan8 libubsan1 libtsan2  # gcc's sanitizer runtimes (CMakePresets.json)

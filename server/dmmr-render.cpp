@@ -2,6 +2,7 @@
 // Rank 0 is the server; ranks 1..N are clients.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 
@@ -107,6 +108,36 @@ int main(int argc, char** argv) {
                  "benchmark mode, one machine: the GL stages of every client take turns, "
                  "holding a lock on this file while they work on a job, so that each stage's "
                  "time is its own (docs/benchmarks.md, per-client cost)");
+  std::string renderer = "raster", bvhQuality = "medium";
+  app.add_option("--renderer", renderer,
+                 "raster (GL, the default) or raytrace (Embree on the CPU: no GL context, no "
+                 "occlusion culling; docs/raytrace.md)")
+      ->check(CLI::IsMember({"raster", "raytrace"}));
+  app.add_flag("--shadows", c.ray.shadows,
+               "raytrace: hard shadows from a directional light (--light)");
+  app.add_flag("--reflections", c.ray.reflections,
+               "raytrace: mirror reflection and refraction on objects marked so");
+  app.add_option("--ray-depth", c.ray.max_depth, "raytrace: bounces at most")
+      ->check(CLI::Range(0, 16));
+  std::vector<double> light;
+  app.add_option("--light", light, "raytrace: direction towards the light, X,Y,Z (world)")
+      ->delimiter(',')
+      ->expected(3);
+  app.add_option("--bvh-quality", bvhQuality, "raytrace: Embree build quality")
+      ->check(CLI::IsMember({"low", "medium", "high"}));
+  std::string bvhLayout = "compact";
+  app.add_option("--bvh-layout", bvhLayout,
+                 "raytrace: Embree's BVH layout: compact (the default: 40% less memory, same "
+                 "speed here) or default (Embree's own)")
+      ->check(CLI::IsMember({"compact", "default"}));
+  app.add_option("--ray-threads", c.ray_threads,
+                 "raytrace: threads per client, its render stage's included (0: every CPU it "
+                 "may use; 1: the stage thread alone, whose CPU time is then the whole cost)")
+      ->check(CLI::Range(0, 1024));
+  app.add_option("--mirror", c.mirror,
+                 "raytrace --reflections: objects that mirror, by node name (glob; an object "
+                 "matches when its node or any node above it does)");
+  app.add_option("--glass", c.glass, "raytrace --reflections: objects that refract, by node name");
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -137,6 +168,18 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dmmr-render: --walkthrough and --out are required (or --serve)\n");
     return 1;
   }
+  c.ray.compact = bvhLayout == "compact";
+  c.ray.quality = bvhQuality == "low"    ? dmmr::BvhQuality::Low
+                  : bvhQuality == "high" ? dmmr::BvhQuality::High
+                                         : dmmr::BvhQuality::Medium;
+  if (!light.empty()) {
+    double n = std::sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2]);
+    if (!(n > 0) || !std::isfinite(n)) {
+      if (!quiet) std::fprintf(stderr, "dmmr-render: --light must be a non-zero direction\n");
+      return 1;
+    }
+    c.ray.light = {light[0] / n, light[1] / n, light[2] / n};
+  }
   s.scene = c.scene = paths.scene;
   s.walkthrough = paths.walkthrough;
   s.out = paths.out;
@@ -159,6 +202,15 @@ int main(int argc, char** argv) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
     return 1;
+  }
+  if (renderer == "raytrace") {
+    c.raytrace = true;
+    // A ray finds the nearest surface itself: nothing to cull, no GL.
+    c.visibility.method = dmmr::VisibilityMethod::Off;
+    if (app.count("--visibility") && visibility != "off" && !quiet)
+      std::fprintf(stderr,
+                   "dmmr-render: --renderer raytrace does no occlusion culling; --visibility is "
+                   "ignored\n");
   }
   s.visible_weights = weights == "visible" || weights == "fitted";
   s.fitted_weights = weights == "fitted";

@@ -664,3 +664,47 @@ TEST(DistributedErrors, MarkingObjectsVisibleForFramesIsStillExact) {
   for (const FrameDiff& d : compareDirectories(s.reference, out))
     EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
 }
+
+// --renderer raytrace: a pixel's ray does not depend on which client traces
+// it, so any division or tiling gives one client's frames bit for bit; and
+// against the raster reference only sampling differs (the edge-pixel bound
+// is argued and tested in tests/client/raytrace_raster_test.cpp; here, a
+// loose bound that a wrong camera, transform or shading would break).
+TEST(RayTraced, DistributedFramesEqualOneClientsAndStayCloseToTheReference) {
+  SmallScene& s = smallScene();
+  std::string one = s.dir / "rt-c1", two = s.dir / "rt-c2", tiles = s.dir / "rt-c3-tiles";
+  int status = 0;
+  std::string log = s.render(1, one, "--renderer raytrace", &status);
+  ASSERT_EQ(status, 0) << log;
+  log = s.render(2, two, "--renderer raytrace --ray-threads 1", &status);
+  ASSERT_EQ(status, 0) << log;
+  log = s.render(3, tiles, "--renderer raytrace --balance tiles-dynamic --tile 32x32", &status);
+  ASSERT_EQ(status, 0) << log;
+  for (const std::string& other : {two, tiles})
+    for (const FrameDiff& d : compareDirectories(one, other))
+      EXPECT_EQ(d.diff.differing_pixels, 0) << other << "/" << d.name;
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, one);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) {
+    EXPECT_GT(d.diff.psnr, 25.0) << d.name;
+    EXPECT_LT(d.diff.differing_pixels, 160 * 120 / 10) << d.name;
+  }
+}
+
+TEST(RayTraced, CorruptGeometryIsSkippedByNameAndTheRunGoesOn) {
+  SmallScene& s = smallScene();
+  std::string bad = s.dir / "rt-onebadgeometry";
+  fs::copy(s.scene, bad, fs::copy_options::recursive);
+  test::flipByte(bad + "/geometry/000003.bin", 30);
+  std::string out = s.dir / "rt-onebad";
+  int status = 0;
+  std::string log = s.render(2, out, "--renderer raytrace --stats " + out + ".csv", &status, bad);
+  EXPECT_EQ(status, 0) << log;
+  EXPECT_NE(log.find("skipping geometry 3"), std::string::npos) << log;
+  EXPECT_EQ(compareDirectories(s.reference, out).size(), 4u);
+  uint64_t skipped = 0;
+  for (const auto& row : test::readCsv(out + ".csv"))
+    for (const auto& [name, value] : row)
+      if (name.ends_with("_skipped")) skipped += uint64_t(value);
+  EXPECT_GE(skipped, 1u);
+}

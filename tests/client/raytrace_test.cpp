@@ -1,0 +1,253 @@
+// The ray tracer without GL (client/raytrace.h): shadows and mirror
+// reflections on hand-made scenes, predicted pixel by pixel from the analytic
+// rays; BVH memory; regions and thread counts giving the same pixels. The
+// comparison with the raster path is raytrace_raster_test.cpp.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <iostream>
+
+#include "error.h"
+#include "raytrace.h"
+#include "raytrace_scenes.h"
+
+using namespace dmmr;
+using namespace dmmr::rtscenes;
+
+namespace {
+
+constexpr int kW = 160, kH = 120;
+
+const uint8_t* px(const std::vector<uint8_t>& rgba, int x, int y) {
+  return &rgba[(size_t(y) * kW + size_t(x)) * 4];
+}
+
+std::vector<uint8_t> renderFrame(RayTracer& rt, const Camera& cam,
+                                 const std::vector<RtInstance>& inst, const RayOptions& o) {
+  std::vector<uint8_t> rgba;
+  rt.render(cam, kW, kH, {0, 0, kW, kH}, inst, {}, o, &rgba);
+  return rgba;
+}
+
+}  // namespace
+
+// A grey floor (z = 0) and a box floating above it, lit from straight above:
+// the floor under the box, where the camera sees floor (not the box), is in
+// shadow (0.3 base) and the floor away from it is lit (1.0 base, n . l = 1).
+// With shadows off, the same pixels have the headlight shading and nothing
+// marks the shadow.
+TEST(RayTrace, ShadowFallsUnderTheBlockerAndNowhereElse) {
+  RayTracer rt(2);
+  const float grey = 0.7f;
+  auto floor = rt.build(quad(-6, 6, -6, 6, grey, grey, grey));
+  const Box3d blocker = makeBox({-0.5, -0.5, 1.0}, {0.5, 0.5, 2.0});
+  auto cube = rt.build(box(blocker.lo, blocker.hi, 0.9f, 0.2f, 0.2f));
+  std::vector<RtInstance> inst = {{floor.get(), Mat4d::identity(), SurfaceEffect::None},
+                                  {cube.get(), Mat4d::identity(), SurfaceEffect::None}};
+  Camera cam = lookAt({0.3, -4.5, 4.0}, {0, 0, 0}, kW, kH);
+  RayOptions on;
+  on.shadows = true;
+  on.light = {0, 0, 1};
+  RayOptions off = on;
+  off.shadows = false;
+  std::vector<uint8_t> with = renderFrame(rt, cam, inst, on);
+  std::vector<uint8_t> without = renderFrame(rt, cam, inst, off);
+
+  const int lit = unorm8(grey), dark = unorm8(0.3 * grey);
+  int shadowed = 0, lit_px = 0, wrong = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      Vec3d d = pixelRay(cam, kW, kH, x, y);
+      if (d.z >= 0) continue;
+      double t = -cam.eye.z / d.z;
+      Vec3d p = cam.eye + d * t;
+      if (std::abs(p.x) > 5.9 || std::abs(p.y) > 5.9) continue;
+      // Floor pixels only, well clear of the box's outline.
+      if (rayBox(cam.eye, d, grow(blocker, 0.05)) < t) continue;
+      double r = std::max(std::abs(p.x), std::abs(p.y));
+      const uint8_t* a = px(with, x, y);
+      const uint8_t* b = px(without, x, y);
+      // Headlight shading of the floor: |n . v| with n = +Z.
+      int head = unorm8(grey * (0.3 + 0.7 * std::abs(d.z) / length(d)));
+      bool headOk = std::abs(b[0] - head) <= 1 && b[0] == b[1] && b[1] == b[2];
+      if (r < 0.45) {
+        ++shadowed;
+        wrong += std::abs(a[0] - dark) > 1 || !headOk;
+      } else if (r > 0.55) {
+        ++lit_px;
+        wrong += std::abs(a[0] - lit) > 1 || !headOk;
+      }
+    }
+  EXPECT_GT(shadowed, 100) << "the scene must show the shadowed floor";
+  EXPECT_GT(lit_px, 1000);
+  EXPECT_EQ(wrong, 0) << "of " << shadowed << " shadowed and " << lit_px << " lit floor pixels";
+}
+
+// A mirror floor under a red box, the camera looking at the floor in front
+// of it: where the reflected ray meets the box the floor is red (0.2 floor +
+// 0.8 box), elsewhere it is not; with reflections off, nowhere.
+TEST(RayTrace, MirrorFloorReflectsTheRedBox) {
+  RayTracer rt(2);
+  auto floor = rt.build(quad(-8, 8, -8, 8, 0.6f, 0.6f, 0.6f));
+  const Box3d red = makeBox({-0.6, -0.6, 0.0}, {0.6, 0.6, 1.2});
+  auto cube = rt.build(box(red.lo, red.hi, 0.9f, 0.1f, 0.1f));
+  std::vector<RtInstance> inst = {{floor.get(), Mat4d::identity(), SurfaceEffect::Mirror},
+                                  {cube.get(), Mat4d::identity(), SurfaceEffect::None}};
+  // Low and close, looking down at the floor before the box, so that the box
+  // itself is at the top of the frame and its reflection below it.
+  Camera cam = lookAt({0, -4, 1.0}, {0, -0.8, 0.05}, kW, kH);
+  RayOptions on;
+  on.reflections = true;
+  RayOptions off;
+  std::vector<uint8_t> with = renderFrame(rt, cam, inst, on);
+  std::vector<uint8_t> without = renderFrame(rt, cam, inst, off);
+  auto reddish = [](const uint8_t* p) { return p[0] > p[1] + 40 && p[0] > p[2] + 40; };
+
+  int mirrored = 0, plain = 0, wrong = 0, wrong_off = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      Vec3d d = pixelRay(cam, kW, kH, x, y);
+      if (d.z >= 0) continue;
+      double t = -cam.eye.z / d.z;
+      Vec3d p = cam.eye + d * t;
+      if (std::abs(p.x) > 7.9 || std::abs(p.y) > 7.9) continue;
+      if (rayBox(cam.eye, d, grow(red, 0.05)) < t) continue;  // the box itself
+      Vec3d r{d.x, d.y, -d.z};                                // reflected off z = 0
+      bool hits = rayBox(p, r, grow(red, -0.05)) < 1e30;
+      bool misses = rayBox(p, r, grow(red, 0.05)) > 1e30;
+      if (hits) {
+        ++mirrored;
+        wrong += !reddish(px(with, x, y));
+      } else if (misses) {
+        ++plain;
+        wrong += reddish(px(with, x, y));
+      }
+      wrong_off += (hits || misses) && reddish(px(without, x, y));
+    }
+  EXPECT_GT(mirrored, 200) << "the reflection must cover part of the frame";
+  EXPECT_GT(plain, 200);
+  EXPECT_EQ(wrong, 0) << "of " << mirrored << " reflecting and " << plain << " other pixels";
+  EXPECT_EQ(wrong_off, 0) << "reflections off";
+}
+
+// Depth bounds recursion: a camera between two parallel mirrors sees a
+// corridor of reflections; with max_depth 0 the mirrors are shaded locally
+// and show no reflection at all.
+TEST(RayTrace, MaxDepthZeroShadesMirrorsLocally) {
+  RayTracer rt(1);
+  auto floor = rt.build(quad(-8, 8, -8, 8, 0.6f, 0.6f, 0.6f));
+  auto cube = rt.build(box({-0.6, -0.6, 0}, {0.6, 0.6, 1.2}, 0.9f, 0.1f, 0.1f));
+  std::vector<RtInstance> inst = {{floor.get(), Mat4d::identity(), SurfaceEffect::Mirror},
+                                  {cube.get(), Mat4d::identity(), SurfaceEffect::None}};
+  Camera cam = lookAt({0, -4, 1.0}, {0, -0.8, 0.05}, kW, kH);
+  RayOptions o;
+  o.reflections = true;
+  o.max_depth = 0;
+  EXPECT_EQ(renderFrame(rt, cam, inst, o), renderFrame(rt, cam, inst, RayOptions{}));
+  o.max_depth = 1;
+  EXPECT_NE(renderFrame(rt, cam, inst, o), renderFrame(rt, cam, inst, RayOptions{}));
+}
+
+// A white glass slab between the camera and a red floor, seen head-on: at
+// normal incidence Schlick's Fresnel term is 0.04 per surface, so the floor
+// shows through nearly as bright as beside the slab, and in place (no bend at
+// normal incidence); with reflections off the slab is opaque white.
+TEST(RayTrace, GlassSlabTransmitsAtNormalIncidence) {
+  RayTracer rt(2);
+  auto floor = rt.build(quad(-4, 4, -4, 4, 0.9f, 0.1f, 0.1f));
+  auto slab = rt.build(box({-1, -1, 2}, {1, 1, 2.1}, 1, 1, 1));
+  std::vector<RtInstance> inst = {{floor.get(), Mat4d::identity(), SurfaceEffect::None},
+                                  {slab.get(), Mat4d::identity(), SurfaceEffect::Glass}};
+  Camera cam = lookAt({0, 0, 5}, {0, 0, 0}, kW, kH, {0, 1, 0});
+  RayOptions on;
+  on.reflections = true;
+  std::vector<uint8_t> with = renderFrame(rt, cam, inst, on);
+  std::vector<uint8_t> without = renderFrame(rt, cam, inst, RayOptions{});
+  const uint8_t* centre = px(with, kW / 2, kH / 2);
+  const uint8_t* opaque = px(without, kW / 2, kH / 2);
+  EXPECT_EQ(opaque[0], 255);
+  EXPECT_EQ(opaque[1], 255);
+  // The floor seen head-on at the centre: 0.9 red (|n . v| = 1 up to half a
+  // pixel).
+  const double head_on = 0.9 * 255;
+  // Through the slab: (1 - 0.04)^2 of it, plus a little reflected background
+  // and light bounced inside the slab (at most a few levels).
+  EXPECT_GE(centre[0], 0.96 * 0.96 * head_on - 2);
+  EXPECT_LE(centre[0], 0.96 * 0.96 * head_on + 8);
+  EXPECT_LT(centre[0], head_on - 5) << "Fresnel reflection takes some light";
+  EXPECT_LT(centre[1], 40);
+  // Beside the slab, the floor as without it.
+  Vec3d d = pixelRay(cam, kW, kH, 4, kH / 2);
+  EXPECT_NEAR(px(with, 4, kH / 2)[0], unorm8(0.9 * (0.3 + 0.7 * std::abs(d.z) / length(d))), 1);
+}
+
+// BVH memory as Embree reports it: more triangles, more bytes; the bytes
+// held include the BVH; the compact layout takes no more than the default.
+TEST(RayTrace, BvhBytesGrowWithTrianglesAndCompactIsSmaller) {
+  RayTracer rt(2);
+  GeometryData small = grid(20), big = grid(80);
+  for (BvhQuality q : {BvhQuality::Low, BvhQuality::Medium, BvhQuality::High}) {
+    auto a = rt.build(small, q), b = rt.build(big, q);
+    auto c = rt.build(big, q, true);
+    EXPECT_EQ(a->triangles(), small.triangleCount());
+    EXPECT_EQ(b->triangles(), big.triangleCount());
+    EXPECT_GT(a->bvhBytes(), 0u);
+    EXPECT_GE(a->bytes(), a->bvhBytes() + small.positions.size() * 4 + small.indices.size() * 4);
+    EXPECT_GT(b->bvhBytes(), a->bvhBytes());
+    EXPECT_GT(b->bytes(), a->bytes());
+    EXPECT_LE(c->bvhBytes(), b->bvhBytes());
+    EXPECT_LE(c->bytes(), b->bytes());
+    std::cout << "quality " << int(q) << ": BVH bytes/triangle " << b->bvhBytes() / 12800.0
+              << ", compact " << c->bvhBytes() / 12800.0 << "\n";
+  }
+  // The count is per mesh: the same mesh built twice reports the same bytes
+  // (within Embree's allocation slack), whatever was built before.
+  auto d = rt.build(big), e = rt.build(big);
+  EXPECT_NEAR(double(d->bvhBytes()), double(e->bvhBytes()), 0.1 * double(d->bvhBytes()));
+}
+
+// A region renders the same pixels as that part of the full frame, whatever
+// the number of threads.
+TEST(RayTrace, RegionsAndThreadCountsGiveTheSamePixels) {
+  RayTracer one(1), two(2);
+  auto m1 = one.build(box({-1, -1, -1}, {1, 1, 1}, 0.3f, 0.6f, 0.9f, false, true));
+  auto m2 = two.build(box({-1, -1, -1}, {1, 1, 1}, 0.3f, 0.6f, 0.9f, false, true));
+  Mat4d t = Mat4d::translate({0.2, 0.1, 0}) * Mat4d::rotation(lookRotation({1, 2, 0.5}, {0, 0, 1}));
+  Camera cam = lookAt({3, -4, 2}, {0, 0, 0}, kW, kH);
+  std::vector<uint8_t> full1, full2, part;
+  one.render(cam, kW, kH, {0, 0, kW, kH}, {{m1.get(), t, SurfaceEffect::None}}, {}, {}, &full1);
+  two.render(cam, kW, kH, {0, 0, kW, kH}, {{m2.get(), t, SurfaceEffect::None}}, {}, {}, &full2);
+  EXPECT_EQ(full1, full2);
+  const Rect r{37, 21, 61, 45};
+  two.render(cam, kW, kH, r, {{m2.get(), t, SurfaceEffect::None}}, {}, {}, &part);
+  ASSERT_EQ(part.size(), size_t(r.area()) * 4);
+  int covered = 0;
+  for (int y = 0; y < r.h; ++y)
+    for (int x = 0; x < r.w; ++x) {
+      const uint8_t* a = &part[(size_t(y) * r.w + x) * 4];
+      const uint8_t* b = px(full2, r.x + x, r.y + y);
+      ASSERT_EQ(std::memcmp(a, b, 4), 0) << "pixel " << r.x + x << "," << r.y + y;
+      covered += a[0] != 51;  // not the default background's red (0.2)
+    }
+  EXPECT_GT(covered, r.area() / 4) << "the region must show the box";
+}
+
+TEST(RayTrace, BadInputIsAnError) {
+  RayTracer rt(1);
+  GeometryData g = quad(0, 1, 0, 1, 1, 1, 1);
+  g.indices[2] = 99;
+  EXPECT_THROW(rt.build(g), Error);
+  g = quad(0, 1, 0, 1, 1, 1, 1);
+  g.submeshes[0].index_count = 9;
+  EXPECT_THROW(rt.build(g), Error);
+  g = quad(0, 1, 0, 1, 1, 1, 1);
+  g.normals.pop_back();
+  EXPECT_THROW(rt.build(g), Error);
+  std::vector<uint8_t> rgba;
+  Camera cam = lookAt({0, 0, 5}, {0, 0, 0}, kW, kH, {0, 1, 0});
+  EXPECT_THROW(rt.render(cam, kW, kH, {100, 0, 100, 10}, {}, {}, {}, &rgba), Error);
+  RayTracer other(1);
+  auto m = other.build(quad(0, 1, 0, 1, 1, 1, 1));
+  EXPECT_THROW(
+      rt.render(cam, kW, kH, {0, 0, kW, kH}, {{m.get(), Mat4d::identity()}}, {}, {}, &rgba), Error);
+}
