@@ -604,9 +604,5 @@ void ViewerHub::stop() {
   });
 }
 
-bool ViewerHub::stopped() const {
-  std::lock_guard<std::mutex> lock(impl_->mu);
-  return impl_->stopped;
-}
 
 }  // namespace dmmr

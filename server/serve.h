@@ -81,7 +81,6 @@ class ViewerHub {
   // Ends nextPose's waits and closes every viewer ("server stopping").
   // Idempotent; SIGINT and SIGTERM call it too.
   void stop();
-  bool stopped() const;
 
   struct Impl;  // the network sessions (serve.cpp) reach it
 

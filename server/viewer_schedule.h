@@ -30,7 +30,6 @@ class ViewerSchedule {
   void add(uint64_t viewer);
   // Forgets the viewer; frames of it still rendering are then Gone.
   void remove(uint64_t viewer);
-  bool has(uint64_t viewer) const { return viewers_.count(viewer) != 0; }
   size_t size() const { return viewers_.size(); }
 
   // A pose came at `now_ms`. False (dropped) when it is stale or the viewer

@@ -33,7 +33,7 @@ server_pid=""
 stop_server() {
   if [ -n "$server_pid" ]; then
     kill -TERM "$server_pid" 2>/dev/null || true
-    wait "$mpirun_pid" 2>/dev/null || true
+    wait "$server_job" 2>/dev/null || true
     server_pid=""
   fi
 }
@@ -57,7 +57,7 @@ for c in "${configs[@]}"; do
     "${launch[@]}" -np $((n + 1)) $bin/dmmr-render --scene $sc --walkthrough $path \
       --serve 127.0.0.1:0 --stats "$out/$tag-serve.csv" --width "$w" --height "$h" \
       --in-flight "$inflight" 2>"$out/$tag-serve.log" &
-    mpirun_pid=$!
+    server_job=$!
     url=""
     for _ in $(seq 1 600); do
       url=$(grep -o 'http://[^ ]*' "$out/$tag-serve.log" || true)
