@@ -269,14 +269,16 @@ TEST(Serve, APoseThatComesWhileTheViewersFrameRendersIsRenderedNext) {
   v.sendPose(poseAt(pts[6], 2));
   ViewerClient::Received a = frameWithin(v, 30);
   ASSERT_EQ(a.kind, Kind::Frame) << s.log();
-  ViewerClient::Received b = frameWithin(v, 10);
+  // Both poses may arrive before the first render starts; then pose 1 is
+  // stale and dropped, and the next message is already the still frame.
   if (a.header.value("seq", 0u) == 1u) {
+    ViewerClient::Received b = frameWithin(v, 10);
     ASSERT_EQ(b.kind, Kind::Frame) << "no frame for the pose that came during a render";
     EXPECT_EQ(b.header.value("seq", 0u), 2u);
     EXPECT_FALSE(b.header.value("still", true));
   }
   ViewerClient::Received still = stillWithin(v, 10);
-  ASSERT_EQ(still.kind, Kind::Frame);
+  ASSERT_EQ(still.kind, Kind::Frame) << s.log();
   EXPECT_EQ(still.header.value("seq", 0u), 2u);
   EXPECT_EQ(s.stop(), 0) << s.log();
 }
