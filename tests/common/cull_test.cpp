@@ -1,4 +1,4 @@
-// Tests for classify() and cullObjects() (server/cull.h): hierarchical
+// Tests for classify() and cullObjects() (common/cull.h): hierarchical
 // culling through random skeleton trees gives exactly what a brute-force test
 // of every object against the five frustum planes gives, never drops an
 // object with a point in view, and skips subtrees outside the view.
@@ -373,6 +373,106 @@ TEST(CullObjects, AnEmptySkeletonCullsNothing) {
   cullObjects({}, {}, frustumPlanes(Camera{}), &out, &stats);
   EXPECT_TRUE(out.empty());
   EXPECT_EQ(stats.nodes_visited, 0u);
+}
+
+// ---- region planes and shadow casters ---------------------------------------
+
+TEST(RegionPlanes, TheWholeFrameGivesTheFrustumBitForBit) {
+  Rng rng(26);
+  for (int trial = 0; trial < 200; ++trial) {
+    Camera c = randomCamera(rng, 1e5);
+    Planes whole = frustumPlanes(c), region = regionPlanes(c, 640, 480, {0, 0, 640, 480}, 0);
+    for (int i = 0; i < 5; ++i) {
+      EXPECT_EQ(region[i].n, whole[i].n);
+      EXPECT_EQ(region[i].d, whole[i].d);
+    }
+  }
+}
+
+// A point seen through a pixel of the region is inside its planes; one seen
+// through a pixel more than the margin outside it is not.
+TEST(RegionPlanes, HoldWhatTheRegionsPixelsSeeAndNothingBeyondTheMargin) {
+  Rng rng(27);
+  const int w = 320, h = 200;
+  int in = 0, out = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    Camera c = randomCamera(rng, 100);
+    c.aspect = double(w) / h;
+    int x = rng.integer(0, w - 1), y = rng.integer(0, h - 1);
+    Rect r{x, y, rng.integer(1, w - x), rng.integer(1, h - y)};
+    Planes planes = regionPlanes(c, w, h, r, 1);
+    // A point at window position (px, py) and eye depth z.
+    double px = rng.real(-20, w + 20), py = rng.real(-20, h + 20), z = rng.real(c.near, 1000);
+    double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+    Vec3d eye_p{(px / w * 2 - 1) * tx * z, (py / h * 2 - 1) * ty * z, -z};
+    Vec3d p = c.eye + Mat4d::rotation(c.rotation).transformVector(eye_p);
+    bool inside = px >= r.x && px <= r.x1() && py >= r.y && py <= r.y1();
+    bool beyond = px < r.x - 1.01 || px > r.x1() + 1.01 || py < r.y - 1.01 || py > r.y1() + 1.01;
+    if (inside) {
+      ++in;
+      EXPECT_TRUE(insideAll(planes, p))
+          << "trial " << trial << " " << c << " pixel " << px << "," << py;
+    }
+    if (beyond) {
+      ++out;
+      EXPECT_FALSE(insideAll(planes, p))
+          << "trial " << trial << " " << c << " pixel " << px << "," << py;
+    }
+  }
+  EXPECT_GT(in, 100);
+  EXPECT_GT(out, 100);
+}
+
+// Brute force: a box culled against the caster planes has no point from
+// which a step back along -L (towards where the shadow falls) lands in view.
+TEST(ShadowCasters, NoBoxThatShadowsAPointInViewIsCulled) {
+  Rng rng(28);
+  int culled = 0, kept_outside_view = 0, checked = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    Camera c = randomCamera(rng, 10);
+    Planes view = frustumPlanes(c);
+    Vec3d light{rng.real(-1, 1), rng.real(-1, 1), rng.real(-1, 1)};
+    if (length(light) < 0.1) continue;
+    Planes casters = shadowCasterPlanes(view, light * rng.real(0.5, 3));
+    Vec3d centre{rng.real(-40, 40), rng.real(-40, 40), rng.real(-40, 40)};
+    Vec3d half{rng.real(0.1, 5), rng.real(0.1, 5), rng.real(0.1, 5)};
+    Box3d box{centre - half, centre + half};
+    bool cull = classify(box, casters) == Containment::Outside;
+    if (!cull && classify(box, view) == Containment::Outside) ++kept_outside_view;
+    if (!cull) continue;
+    ++culled;
+    for (int k = 0; k < 60; ++k) {
+      Vec3d q = rng.inBox(box);
+      for (double t : {0.0, 0.01, 0.1, 0.5, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0}) {
+        ++checked;
+        Vec3d p = q - light * t;  // p + t L = q: q blocks p's way to the light
+        ASSERT_FALSE(insideAll(view, p)) << "trial " << trial << " " << c << " box " << box
+                                         << " light " << light << " shadows " << p;
+      }
+    }
+  }
+  // Not vacuous: many boxes are culled, and the sweep keeps boxes outside
+  // the view (casters the frustum test alone would have dropped).
+  EXPECT_GT(culled, 500);
+  EXPECT_GT(kept_outside_view, 200);
+  EXPECT_GT(checked, 100000);
+}
+
+TEST(ShadowCasters, ASideLightKeepsWhatLiesBetweenTheViewAndTheLight) {
+  Camera c;  // at the origin, looking down -Z
+  c.fovy_deg = 60;
+  c.aspect = 1;
+  c.near = 0.1;
+  Planes casters = shadowCasterPlanes(frustumPlanes(c), {1, 0, 0});  // the light towards +X
+  auto kept = [&](Vec3d centre) {
+    return classify(Box3d{centre - Vec3d{0.5, 0.5, 0.5}, centre + Vec3d{0.5, 0.5, 0.5}}, casters) !=
+           Containment::Outside;
+  };
+  EXPECT_TRUE(kept({0, 0, -10}));      // in view
+  EXPECT_TRUE(kept({100, 0, -10}));    // out of view, between the view and the light
+  EXPECT_FALSE(kept({-100, 0, -10}));  // on the far side: its shadow falls away from the view
+  EXPECT_FALSE(kept({0, 100, -10}));   // above: its shadow runs along +X, above the view
+  EXPECT_FALSE(kept({0, 0, 10}));      // behind the eye
 }
 
 }  // namespace

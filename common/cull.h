@@ -14,6 +14,22 @@ namespace dmmr {
 // The planes of a (sub-)frustum, inside when distance >= 0.
 using Planes = std::array<Plane, 5>;
 
+// The sub-frustum that `region` of a width x height frame sees, widened by
+// `margin_px` pixels on every side (what a tile or a client's region needs).
+Planes regionPlanes(const Camera& c, int width, int height, const Rect& region,
+                    double margin_px = 1);
+
+// Shadow casters of a directional light: planes that every object able to
+// block the way from a point inside `view` towards the light (direction
+// `to_light`, world space, any length) is not entirely outside. A box B
+// shadows P when P + t L lies in B for some t >= 0, that is when P lies in B
+// swept along -L. That swept volume is outside the plane (n, d) when B is and
+// n . L >= 0 (sweeping only moves it further out); against a plane with
+// n . L < 0 it always reaches the inside. So those planes are dropped
+// (replaced by one no point is outside). Conservative: culling with the
+// result (cullObjects) keeps every caster, and some objects that are not.
+Planes shadowCasterPlanes(const Planes& view, Vec3d to_light);
+
 enum class Containment { Outside, Intersects, Inside };
 Containment classify(const Box3d& box, const Planes& planes);
 Containment classify(const Sphere3d& s, const Planes& planes);
