@@ -13,9 +13,11 @@
 #include <iterator>
 #include <memory>
 #include <mutex>
+#include <numeric>
 #include <thread>
 
 #include "cpu_time.h"
+#include "cull.h"
 #include "depth_pyramid.h"
 #include "draw.h"
 #include "effects.h"
@@ -694,8 +696,27 @@ struct RayStage {
             opts.cache.gpu_budget, opts.cache.eviction) {}
   RayTracer tracer;
   RtCache meshes;
-  std::vector<RtInstance> instances;                  // the frame's, kept across frames
-  std::vector<std::shared_ptr<const RtMesh>> pinned;  // alive until the frame is drawn
+  // The tracer's top level: the objects jobs needed, kept while the device
+  // level holds their meshes, so that the tiles of a frame and frames alike
+  // find it ready (trace()). `pinned[i]` keeps instances[i]'s mesh alive.
+  std::vector<RtInstance> instances;
+  std::vector<std::shared_ptr<const RtMesh>> pinned;
+  std::vector<uint32_t> top_index;    // by object: its index in `instances` (kNone: absent)
+  std::vector<uint32_t> last_needed;  // by object: the frame + 1 a job last needed it
+  std::vector<uint64_t> needed_stamp, geometry_stamp;  // by object, by geometry: this job's
+  std::vector<uint32_t> geometry_slot;                 // by geometry: its index in job_meshes
+  std::vector<std::shared_ptr<const RtMesh>> job_meshes;
+  uint64_t stamp = 0;
+  std::vector<uint32_t> required, all_objects;
+  // Shadow casters of the last frame seen (the whole frame's, so that every
+  // tile and division sees the same set).
+  uint32_t casters_frame = UINT32_MAX;
+  Camera casters_camera;
+  std::vector<uint32_t> casters;
+  static constexpr uint32_t kNone = UINT32_MAX;
+  // Frames an object stays in the top level after the last job that needed
+  // it, when the top level changes anyway.
+  static constexpr uint32_t kKeepFrames = 8;
 };
 
 class RenderStage {
@@ -813,40 +834,116 @@ class RenderStage {
     host_before_ = h;
   }
 
-  // --renderer raytrace: every object of the list (nothing culls it), its
-  // BVH from the device level, traced into rgba_ (bottom row first, as a
-  // readback). The device level's counts go where the GPU level's do.
+  // --renderer raytrace: the objects a job needs are its list (nothing culls
+  // it), with shadows also the light's casters for the whole frame, with
+  // reflections every object. Each one's BVH comes from the device level.
+  // The tracer's top level keeps objects from job to job: it changes only
+  // when a job needs an object it lacks, and then keeps what jobs needed in
+  // the last kKeepFrames frames and the device level still holds. Objects
+  // beyond what a job needs change no pixel: a primary ray of the region
+  // meets only objects whose box the region's sub-frustum holds (all in the
+  // list), and a shadow ray from a point in view only casters. The device
+  // level's counts go where the GPU level's do.
   void trace(const VisibleJob& v, ClientStats& st) {
     const FrameJob& job = v.job;
     RayStage& rs = *ray_;
     rs.meshes.nextFrame();
     host_.nextFrame();
     RtCacheStats before = rs.meshes.stats();
-    rs.instances.clear();
-    rs.pinned.clear();
-    for (uint32_t index : v.visible) {
+    const size_t objects = scene_.objects.size(), geometries = scene_.manifest.geometries;
+    if (rs.top_index.size() != objects) {
+      rs.top_index.assign(objects, RayStage::kNone);
+      rs.last_needed.assign(objects, 0);
+      rs.needed_stamp.assign(objects, 0);
+      rs.geometry_stamp.assign(geometries, 0);
+      rs.geometry_slot.assign(geometries, 0);
+    }
+    const std::vector<uint32_t>& needed = neededObjects(v);
+    const uint64_t stamp = ++rs.stamp;
+    bool changed = false;
+    for (uint32_t index : needed) {
       const ObjectBounds& o = scene_.objects[index];
-      auto tl = Clock::now();
-      std::shared_ptr<const RtMesh> mesh = rs.meshes.acquire(o.geometry);
-      st.load_ms += msSince(tl);
+      if (rs.geometry_stamp[o.geometry] != stamp) {  // one lookup per geometry
+        rs.geometry_stamp[o.geometry] = stamp;
+        rs.geometry_slot[o.geometry] = uint32_t(rs.job_meshes.size());
+        auto tl = Clock::now();
+        rs.job_meshes.push_back(rs.meshes.acquire(o.geometry));
+        st.load_ms += msSince(tl);
+      }
+      const std::shared_ptr<const RtMesh>& mesh = rs.job_meshes[rs.geometry_slot[o.geometry]];
       if (!mesh) continue;  // unreadable geometry: skipped, counted
-      SurfaceEffect effect = index < effects_.size() ? effects_[index] : SurfaceEffect::None;
-      rs.instances.push_back({mesh.get(), o.transform, effect});
+      rs.needed_stamp[index] = stamp;
+      rs.last_needed[index] = job.frame + 1;
+      uint32_t at = rs.top_index[index];
+      changed |= at == RayStage::kNone || rs.instances[at].mesh != mesh.get();
       st.triangles += mesh->triangles();
-      rs.pinned.push_back(std::move(mesh));
+      ++st.visible;
+    }
+    if (changed) {
+      // A new top level: what this job needs, and what recent jobs needed
+      // that the device level still holds.
+      std::vector<RtInstance> next;
+      std::vector<std::shared_ptr<const RtMesh>> pins;
+      next.reserve(needed.size());
+      for (size_t i = 0; i < rs.instances.size(); ++i) {
+        uint32_t index = rs.instances[i].object;
+        rs.top_index[index] = RayStage::kNone;
+        if (rs.needed_stamp[index] != stamp &&
+            job.frame + 1 - rs.last_needed[index] <= RayStage::kKeepFrames &&
+            rs.meshes.holds(scene_.objects[index].geometry)) {
+          next.push_back(rs.instances[i]);
+          pins.push_back(std::move(rs.pinned[i]));
+        }
+      }
+      for (uint32_t index : needed) {
+        if (rs.needed_stamp[index] != stamp) continue;  // unreadable
+        const ObjectBounds& o = scene_.objects[index];
+        const std::shared_ptr<const RtMesh>& mesh = rs.job_meshes[rs.geometry_slot[o.geometry]];
+        SurfaceEffect effect = index < effects_.size() ? effects_[index] : SurfaceEffect::None;
+        next.push_back({mesh.get(), o.transform, effect, index});
+        pins.push_back(mesh);
+      }
+      for (size_t i = 0; i < next.size(); ++i) rs.top_index[next[i].object] = uint32_t(i);
+      rs.instances.swap(next);
+      rs.pinned.swap(pins);
     }
     auto tr = Clock::now();
-    rs.tracer.render(job.camera, job.width, job.height, job.region, rs.instances,
-                     rs.meshes.textures(), ray_opts_, &rgba_);
-    st.render_ms = msSince(tr);
-    rs.pinned.clear();  // meshes evicted during the gather are freed now
+    RtRenderStats top = rs.tracer.render(job.camera, job.width, job.height, job.region,
+                                         rs.instances, rs.meshes.textures(), ray_opts_, &rgba_);
+    st.render_ms = msSince(tr) - top.top_ms;
+    st.prepare_ms = top.top_ms;  // the top level's update
+    rs.job_meshes.clear();       // meshes evicted during the gather and not kept are freed now
     RtCacheStats after = rs.meshes.stats();
     st.gpu_hits += after.hits - before.hits;
     st.gpu_misses += after.misses - before.misses;
     st.uncached += after.uncached - before.uncached;
     st.gpu_resident += after.resident;
-    st.visible = rs.instances.size();
     addHostStats(st);
+  }
+
+  // The objects job `v` needs traced (ascending): see trace().
+  const std::vector<uint32_t>& neededObjects(const VisibleJob& v) {
+    RayStage& rs = *ray_;
+    if (ray_opts_.reflections && ray_opts_.max_depth > 0) {  // a mirror may show anything
+      if (rs.all_objects.size() != scene_.objects.size()) {
+        rs.all_objects.resize(scene_.objects.size());
+        std::iota(rs.all_objects.begin(), rs.all_objects.end(), 0u);
+      }
+      return rs.all_objects;
+    }
+    if (!ray_opts_.shadows) return v.visible;
+    const FrameJob& job = v.job;
+    if (rs.casters_frame != job.frame || !(rs.casters_camera == job.camera)) {
+      rs.casters.clear();
+      cullObjects(scene_.skeleton, scene_.objects,
+                  shadowCasterPlanes(frustumPlanes(job.camera), ray_opts_.light), &rs.casters);
+      rs.casters_frame = job.frame;
+      rs.casters_camera = job.camera;
+    }
+    rs.required.clear();
+    std::set_union(v.visible.begin(), v.visible.end(), rs.casters.begin(), rs.casters.end(),
+                   std::back_inserter(rs.required));
+    return rs.required;
   }
 
   // rgba_ holds the region's pixels: convert, compress, finish the stats.
@@ -955,13 +1052,15 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   std::vector<SurfaceEffect> effects;
   std::unique_ptr<HostCache> host;
   try {
-    // The skeleton's names choose the ray tracer's effects; otherwise
-    // clients never traverse it.
+    // The skeleton's names choose the ray tracer's effects, and shadows cull
+    // their casters through it; otherwise clients never traverse it.
     bool named =
         opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
-    scene = loadScene(opts.scene, /*with_skeleton=*/named);
-    if (named) {
+    bool casters = opts.raytrace && opts.ray.shadows;
+    scene = loadScene(opts.scene, /*with_skeleton=*/named || casters);
+    if (named)
       effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);
+    if (!casters) {
       scene.skeleton.clear();
       scene.skeleton.shrink_to_fit();
     }

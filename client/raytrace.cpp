@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
@@ -14,6 +15,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <unordered_map>
 
 #include "affinity.h"
 #include "error.h"
@@ -114,6 +116,14 @@ class FlushDenormals {
 
 }  // namespace
 
+namespace {
+struct TopLevel;
+class EmbreeMesh;
+// Points every slot of `top` that holds `mesh` at the empty scene (the mesh
+// is going away). The device's mutex held.
+void unbindMesh(TopLevel& top, const EmbreeMesh* mesh);
+}  // namespace
+
 // ---- the device, shared by the tracer and every mesh it built ---------------
 // Every Embree call that allocates or frees (scene builds and releases) holds
 // `mutex`, so that the memory monitor's running total, read before and after
@@ -125,6 +135,9 @@ struct EmbreeDevice {
   std::atomic<int64_t> allocated{0};  // net bytes Embree holds (memory monitor)
   std::mutex error_mutex;
   std::string error;  // the last error Embree reported (its callback)
+  // The tracer's top level (its Impl owns it; null once the tracer is gone),
+  // so that a mesh released while bound there is unbound first.
+  TopLevel* top = nullptr;
 
   explicit EmbreeDevice(int threads) {
     std::string config = "threads=" + std::to_string(threads);
@@ -172,10 +185,9 @@ class EmbreeMesh final : public RtMesh {
  public:
   explicit EmbreeMesh(std::shared_ptr<EmbreeDevice> d) : dev(std::move(d)) {}
   ~EmbreeMesh() override {
-    if (scene) {
-      std::lock_guard<std::mutex> lock(dev->mutex);
-      rtcReleaseScene(scene);
-    }
+    std::lock_guard<std::mutex> lock(dev->mutex);
+    if (dev->top) unbindMesh(*dev->top, this);
+    if (scene) rtcReleaseScene(scene);
   }
   uint64_t bytes() const override { return bvh_bytes + copy_bytes; }
   uint64_t bvhBytes() const override { return bvh_bytes; }
@@ -195,6 +207,9 @@ class EmbreeMesh final : public RtMesh {
   std::vector<SubMesh> submeshes;
   std::vector<uint32_t> submesh_end;
   uint64_t bvh_bytes = 0, copy_bytes = 0;
+  // The top-level slots that instance this mesh now (TopSlot::pos is each
+  // one's index here); changed under the device's mutex.
+  mutable std::vector<uint32_t> slots;
 
   const SubMesh& submeshOf(uint32_t tri) const {
     size_t k =
@@ -203,8 +218,8 @@ class EmbreeMesh final : public RtMesh {
   }
 };
 
-// One object of the frame: its mesh, eye-space transform's normal matrix
-// (column-major 3x3, as the raster path's u_nrm) and effect.
+// One object of the frame: its mesh, its transform's normal matrix (world
+// space, column-major 3x3, as the raster path's u_nrm) and effect.
 struct FrameInstance {
   const EmbreeMesh* mesh = nullptr;
   float nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -217,6 +232,69 @@ struct Hit {
   float u = 0, v = 0;
   unsigned prim = 0, inst = 0;
 };
+
+// One instance geometry of the top level: it holds one object (its key)
+// while `used`, bound to that object's mesh, or to the empty scene and
+// disabled.
+struct TopSlot {
+  RTCGeometry geom = nullptr;
+  uint32_t key = 0;
+  bool used = false, enabled = false;
+  const EmbreeMesh* mesh = nullptr;  // null: the empty scene
+  uint32_t pos = 0;                  // index in mesh->slots
+  Mat4d object_to_world;             // as set, against anchor generation `anchor_gen`
+  uint64_t anchor_gen = 0, stamp = 0;
+};
+
+// The top level, kept from call to call so that a frame whose objects are
+// those of the last one costs no Embree call at all (docs/raytrace.md).
+// Transforms are in world space less `anchor`, a point near the camera:
+// positions keep float precision relative to their distance from the eye
+// while the camera stays within kAnchorReach nearest hits of the anchor.
+struct TopLevel {
+  RTCScene scene = nullptr, empty = nullptr;
+  std::vector<TopSlot> slots;                      // slot s is instance geometry s
+  std::vector<FrameInstance> info;                 // by slot, for shading
+  std::unordered_map<uint32_t, uint32_t> slot_of;  // key -> slot
+  std::vector<uint32_t> free;                      // unused slots
+  std::vector<uint32_t> order;                     // slot of each instance of the last call
+  Vec3d anchor;
+  bool anchored = false;
+  uint64_t anchor_gen = 0, stamp = 0;
+  float nearest = 0;   // the last call's nearest primary hit (eye depth; 0: none yet)
+  bool dirty = false;  // changed since the last commit
+
+  // Binds slot `s` to `mesh` (null: the empty scene, disabled).
+  void bind(uint32_t s, const EmbreeMesh* mesh) {
+    TopSlot& t = slots[s];
+    if (t.mesh) {  // off the old mesh's list
+      std::vector<uint32_t>& list = t.mesh->slots;
+      list[t.pos] = list.back();
+      slots[list[t.pos]].pos = t.pos;
+      list.pop_back();
+    }
+    t.mesh = mesh;
+    info[s].mesh = mesh;
+    if (mesh) {
+      t.pos = uint32_t(mesh->slots.size());
+      mesh->slots.push_back(s);
+    }
+    rtcSetGeometryInstancedScene(t.geom, mesh ? mesh->scene : empty);
+    if (bool on = mesh != nullptr; on != t.enabled) {
+      if (on)
+        rtcEnableGeometry(t.geom);
+      else
+        rtcDisableGeometry(t.geom);
+      t.enabled = on;
+    }
+    rtcCommitGeometry(t.geom);
+    dirty = true;
+  }
+};
+
+void unbindMesh(TopLevel& top, const EmbreeMesh* mesh) {
+  while (!mesh->slots.empty()) top.bind(mesh->slots.back(), nullptr);
+}
 
 }  // namespace
 
@@ -300,20 +378,18 @@ struct RayTracer::Impl {
   std::shared_ptr<EmbreeDevice> dev;
   std::unique_ptr<TilePool> pool;
   std::mutex render_mutex;  // one frame at a time (the pool and the top level)
-  // The top level, kept from frame to frame: instance geometry i is object
-  // i's slot (creating 20,000 instance geometries took as long as building
-  // the top level's BVH over them). Between frames every slot points at
-  // `empty`, so that no mesh's BVH outlives its RtMesh through a slot.
-  RTCScene top = nullptr, empty = nullptr;
-  std::vector<RTCGeometry> slots;
-  std::vector<char> enabled;
+  TopLevel top;
 
   ~Impl() {
     if (!dev) return;
     std::lock_guard<std::mutex> lock(dev->mutex);
-    if (top) rtcReleaseScene(top);  // releases the slots it holds
-    for (RTCGeometry g : slots) rtcReleaseGeometry(g);
-    if (empty) rtcReleaseScene(empty);
+    dev->top = nullptr;  // meshes that outlive the tracer have nothing to unbind
+    for (TopSlot& t : top.slots) {
+      if (t.mesh) t.mesh->slots.clear();
+      rtcReleaseGeometry(t.geom);
+    }
+    if (top.scene) rtcReleaseScene(top.scene);  // and the slots attached to it
+    if (top.empty) rtcReleaseScene(top.empty);
   }
 };
 
@@ -322,10 +398,13 @@ RayTracer::RayTracer(int threads) : impl_(std::make_unique<Impl>()) {
   impl_->dev = std::make_shared<EmbreeDevice>(impl_->threads);
   impl_->pool = std::make_unique<TilePool>(impl_->threads);
   std::lock_guard<std::mutex> lock(impl_->dev->mutex);
-  impl_->empty = rtcNewScene(impl_->dev->device);
-  rtcCommitScene(impl_->empty);
-  impl_->top = rtcNewScene(impl_->dev->device);
+  TopLevel& top = impl_->top;
+  top.empty = rtcNewScene(impl_->dev->device);
+  rtcCommitScene(top.empty);
+  top.scene = rtcNewScene(impl_->dev->device);
+  rtcCommitScene(top.scene);  // empty, ready for a frame without objects
   impl_->dev->check("creating the top level");
+  impl_->dev->top = &top;
 }
 
 RayTracer::~RayTracer() = default;
@@ -399,10 +478,10 @@ namespace {
 // Everything one frame's rays need, read-only while tracing.
 struct Frame {
   RTCScene scene = nullptr;
-  std::vector<FrameInstance> instances;
+  const FrameInstance* instances = nullptr;  // by instance ID (top-level slot)
   const std::vector<const TextureData*>* textures = nullptr;
   RayOptions opts;
-  V3 light;  // eye space, unit
+  V3 light;  // world space, unit
   V3 background;
 };
 
@@ -443,7 +522,7 @@ class Tracer {
  public:
   explicit Tracer(const Frame& f) : f_(f) {}
 
-  // The colour seen along `dir` from `org` (eye space), `depth` bounces in.
+  // The colour seen along `dir` from `org` (anchor space), `depth` bounces in.
   V3 trace(V3 org, V3 dir, float tnear, int depth) {
     Hit h = intersect(org, dir, tnear, false);
     return h.hit ? shade(h, org, dir, depth) : f_.background;
@@ -502,7 +581,7 @@ class Tracer {
     return r.tfar < 0;  // Embree sets tfar to -inf on a hit
   }
 
-  // What lighting needs of hit `h` on the ray org + t dir (eye space): the
+  // What lighting needs of hit `h` on the ray org + t dir (anchor space): the
   // raster shader's base colour and normal, and where secondary rays start.
   struct Surface {
     V3 base;        // diffuse * vertex colour * texture, RGB
@@ -631,115 +710,160 @@ class Tracer {
 
 }  // namespace
 
-void RayTracer::render(const Camera& camera, int width, int height, const Rect& region,
-                       const std::vector<RtInstance>& instances,
-                       const std::vector<const TextureData*>& textures, const RayOptions& opts,
-                       std::vector<uint8_t>* rgba, Rgb background) {
+RtRenderStats RayTracer::render(const Camera& camera, int width, int height, const Rect& region,
+                                const std::vector<RtInstance>& instances,
+                                const std::vector<const TextureData*>& textures,
+                                const RayOptions& opts, std::vector<uint8_t>* rgba,
+                                Rgb background) {
   if (width <= 0 || height <= 0 || !insideFrame(region, width, height))
     throw Error("ray tracer: region outside the " + std::to_string(width) + "x" +
                 std::to_string(height) + " frame");
   std::lock_guard<std::mutex> render_lock(impl_->render_mutex);
   rgba->assign(size_t(region.area()) * 4, 0);
-  if (region.empty()) return;
+  RtRenderStats stats;
+  if (region.empty()) return stats;
+  auto t0 = std::chrono::steady_clock::now();
 
   Frame f;
   f.textures = &textures;
   f.opts = opts;
   f.background = {background.r, background.g, background.b};
-  const Mat4d view = viewRotation(camera);
   {
-    Vec3d l = view.transformVector(opts.light);
-    double ll = length(l);
-    l = ll > 0 ? l / ll : Vec3d{0, 0, 1};
+    double ll = length(opts.light);
+    Vec3d l = ll > 0 ? opts.light / ll : Vec3d{0, 0, 1};
     f.light = {float(l.x), float(l.y), float(l.z)};
   }
-
-  // The top level: each object's transform made camera-relative and rotated
-  // into eye space in double, as the raster path's cameraRelative, then
-  // converted to float for Embree. Rays start at the eye, the origin.
-  EmbreeDevice& d = *impl_->dev;
-  Impl& im = *impl_;
-  f.instances.resize(instances.size());
-  for (size_t i = 0; i < instances.size(); ++i) {
-    const RtInstance& in = instances[i];
-    if (!in.mesh) continue;
+  for (const RtInstance& in : instances) {
     const auto* mesh = dynamic_cast<const EmbreeMesh*>(in.mesh);
-    if (!mesh || mesh->dev != im.dev)
+    if (in.mesh && (!mesh || mesh->dev != impl_->dev))
       throw Error("ray tracer: an instance's mesh was built by another RayTracer");
-    f.instances[i].mesh = mesh;
-    f.instances[i].effect = in.effect;
   }
-  // Points every slot back at the empty scene when the frame is done (or
-  // failed), dropping the frame's references to the meshes.
-  struct Unbind {
-    Impl& im;
-    size_t used = 0;
-    ~Unbind() {
-      std::lock_guard<std::mutex> lock(im.dev->mutex);
-      for (size_t i = 0; i < used; ++i) {
-        rtcSetGeometryInstancedScene(im.slots[i], im.empty);
-        rtcCommitGeometry(im.slots[i]);
-      }
-    }
-  } unbind{im};
+
+  // The top level: only what differs from the last call is touched.
+  EmbreeDevice& d = *impl_->dev;
+  TopLevel& top = impl_->top;
   {
     std::lock_guard<std::mutex> lock(d.mutex);
     d.check("an earlier call");
     if (instances.size() >= RTC_INVALID_GEOMETRY_ID)
       throw Error("ray tracer: too many objects (" + std::to_string(instances.size()) + ")");
-    while (im.slots.size() < instances.size()) {
-      RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
-      if (!g) {
-        d.check("creating an instance");
-        throw Error("Embree: creating an instance failed");
-      }
-      rtcSetGeometryInstancedScene(g, im.empty);
-      rtcCommitGeometry(g);
-      rtcAttachGeometryByID(im.top, g, unsigned(im.slots.size()));
-      im.slots.push_back(g);
-      im.enabled.push_back(1);
+    // A new anchor (every transform set again) when the eye is farther from
+    // it than kAnchorReach times the nearest surface seen (or the near plane).
+    const double reach = kAnchorReach * std::max(camera.near, double(top.nearest));
+    if (!top.anchored || length(camera.eye - top.anchor) > reach) {
+      top.anchor = camera.eye;
+      top.anchored = true;
+      ++top.anchor_gen;
+      stats.reanchored = true;
     }
-    unbind.used = instances.size();
-    for (size_t i = 0; i < im.slots.size(); ++i) {
-      const FrameInstance* fi = i < f.instances.size() ? &f.instances[i] : nullptr;
-      bool on = fi && fi->mesh;
-      if (!on) {
-        if (im.enabled[i]) rtcDisableGeometry(im.slots[i]);
-        im.enabled[i] = 0;
-        continue;
+    const uint64_t stamp = ++top.stamp;
+    const size_t last = top.order.size();
+    top.order.resize(instances.size());
+    for (size_t i = 0; i < instances.size(); ++i) {
+      const RtInstance& in = instances[i];
+      const auto* mesh = static_cast<const EmbreeMesh*>(in.mesh);
+      if (!mesh) continue;
+      const uint32_t key = in.object != RtInstance::kNoObject ? in.object : uint32_t(i);
+      uint32_t s = i < last ? top.order[i] : UINT32_MAX;
+      if (s >= top.slots.size() || !top.slots[s].used || top.slots[s].key != key) {
+        auto it = top.slot_of.find(key);
+        if (it != top.slot_of.end()) {
+          s = it->second;
+        } else {
+          if (!top.free.empty()) {
+            s = top.free.back();
+            top.free.pop_back();
+          } else {
+            RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
+            if (!g) {
+              d.check("creating an instance");
+              throw Error("Embree: creating an instance failed");
+            }
+            rtcSetGeometryInstancedScene(g, top.empty);
+            rtcDisableGeometry(g);
+            rtcCommitGeometry(g);
+            s = uint32_t(top.slots.size());
+            rtcAttachGeometryByID(top.scene, g, s);
+            top.slots.push_back({});
+            top.slots.back().geom = g;
+            top.info.push_back({});
+          }
+          top.slots[s].used = true;
+          top.slots[s].key = key;
+          top.slots[s].anchor_gen = 0;  // no transform yet
+          top.slot_of[key] = s;
+        }
       }
-      Mat4d rel = instances[i].object_to_world;
-      for (int r = 0; r < 3; ++r) rel.at(r, 3) -= camera.eye[r];
-      Mat4d mv = view * rel;
+      TopSlot& t = top.slots[s];
+      if (t.stamp == stamp)
+        throw Error("ray tracer: object " + std::to_string(key) + " given twice in one frame");
+      t.stamp = stamp;
+      top.order[i] = s;
+      if (t.mesh != mesh) {
+        top.bind(s, mesh);
+        ++stats.updated;
+      }
+      top.info[s].effect = in.effect;
+      if (t.anchor_gen == top.anchor_gen && t.object_to_world == in.object_to_world) continue;
+      // The transform less the anchor, in double, then float for Embree.
+      Mat4d rel = in.object_to_world;
+      for (int r = 0; r < 3; ++r) rel.at(r, 3) -= top.anchor[r];
       Mat4d inv;
-      if (invertAffine(mv, &inv))  // normal matrix = inverse transpose of the 3x3
+      FrameInstance& fi = top.info[s];
+      if (invertAffine(rel, &inv))  // normal matrix = inverse transpose of the 3x3
         for (int c = 0; c < 3; ++c)
-          for (int r = 0; r < 3; ++r) f.instances[i].nrm[c * 3 + r] = float(inv.at(c, r));
+          for (int r = 0; r < 3; ++r) fi.nrm[c * 3 + r] = float(inv.at(c, r));
       float xfm[12];  // 3x4 column-major
       for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 3; ++r) xfm[c * 3 + r] = float(mv.at(r, c));
-      RTCGeometry g = im.slots[i];
-      rtcSetGeometryInstancedScene(g, fi->mesh->scene);
-      rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
-      if (!im.enabled[i]) rtcEnableGeometry(g);
-      im.enabled[i] = 1;
-      rtcCommitGeometry(g);
+        for (int r = 0; r < 3; ++r) xfm[c * 3 + r] = float(rel.at(r, c));
+      rtcSetGeometryTransform(t.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+      rtcCommitGeometry(t.geom);
+      t.object_to_world = in.object_to_world;
+      t.anchor_gen = top.anchor_gen;
+      top.dirty = true;
+      ++stats.updated;
     }
-    rtcCommitScene(im.top);
-    d.check("building the top level over " + std::to_string(instances.size()) + " objects");
+    // Objects of the last call that are not in this one leave.
+    for (uint32_t s = 0; s < top.slots.size(); ++s) {
+      TopSlot& t = top.slots[s];
+      if (!t.used || t.stamp == stamp) continue;
+      top.bind(s, nullptr);
+      t.used = false;
+      top.slot_of.erase(t.key);
+      top.free.push_back(s);
+      ++stats.updated;
+    }
+    if (top.dirty) {
+      rtcCommitScene(top.scene);
+      d.check("building the top level over " + std::to_string(instances.size()) + " objects");
+      top.dirty = false;
+      stats.rebuilt = true;
+    }
   }
-  f.scene = im.top;
+  f.scene = top.scene;
+  f.instances = top.info.data();
+  stats.top_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
-  // Primary rays: eye-space direction (ndc_x tan(fovy/2) aspect,
-  // ndc_y tan(fovy/2), -1), so t is the eye-space depth and the near plane
-  // is tnear = near.
+  // Primary rays from the eye (less the anchor), direction the eye-space
+  // (ndc_x tan(fovy/2) aspect, ndc_y tan(fovy/2), -1) turned into world
+  // space, so t is the eye-space depth and the near plane is tnear = near.
   const double ty = std::tan(camera.fovy_deg * M_PI / 360.0), tx = ty * camera.aspect;
   const float tnear = float(camera.near);
+  const Mat4d rot = Mat4d::rotation(camera.rotation);  // camera to world
+  const Vec3d eye_rel = camera.eye - top.anchor;
+  const V3 org{float(eye_rel.x), float(eye_rel.y), float(eye_rel.z)};
+  auto column = [&](int c) {
+    return V3{float(rot.at(0, c)), float(rot.at(1, c)), float(rot.at(2, c))};
+  };
+  const V3 right = column(0), up = column(1), back = column(2);
+  std::atomic<float> nearest{std::numeric_limits<float>::infinity()};
   constexpr int kTile = 16;
   const int tiles_x = (region.w + kTile - 1) / kTile, tiles_y = (region.h + kTile - 1) / kTile;
   FlushDenormals ftz;
   impl_->pool->run(tiles_x * tiles_y, [&](int tile) {
     Tracer tracer(f);
+    float local_nearest = std::numeric_limits<float>::infinity();
     const int x0 = region.x + (tile % tiles_x) * kTile, y0 = region.y + (tile / tiles_x) * kTile;
     const int x1 = std::min(x0 + kTile, region.x1()), y1 = std::min(y0 + kTile, region.y1());
     // 4x4 packets of coherent primary rays, then each ray's shading.
@@ -752,10 +876,13 @@ void RayTracer::render(const Camera& camera, int width, int height, const Rect& 
           valid[k] = x < x1 && y < y1 ? -1 : 0;
           float dx = float(((x + 0.5) / width * 2 - 1) * tx);
           float dy = float(((y + 0.5) / height * 2 - 1) * ty);
-          rh.ray.org_x[k] = rh.ray.org_y[k] = rh.ray.org_z[k] = 0;
-          rh.ray.dir_x[k] = dx;
-          rh.ray.dir_y[k] = dy;
-          rh.ray.dir_z[k] = -1;
+          V3 dir = right * dx + up * dy - back;
+          rh.ray.org_x[k] = org.x;
+          rh.ray.org_y[k] = org.y;
+          rh.ray.org_z[k] = org.z;
+          rh.ray.dir_x[k] = dir.x;
+          rh.ray.dir_y[k] = dir.y;
+          rh.ray.dir_z[k] = dir.z;
           rh.ray.tnear[k] = tnear;
           rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
           rh.ray.time[k] = 0;
@@ -798,7 +925,8 @@ void RayTracer::render(const Camera& camera, int width, int height, const Rect& 
           h.v = rh.hit.v[k];
           h.prim = rh.hit.primID[k];
           h.inst = rh.hit.instID[0][k];
-          surf[k] = tracer.surface(h, V3{0, 0, 0}, V3{rh.ray.dir_x[k], rh.ray.dir_y[k], -1});
+          local_nearest = std::min(local_nearest, h.t);
+          surf[k] = tracer.surface(h, org, V3{rh.ray.dir_x[k], rh.ray.dir_y[k], rh.ray.dir_z[k]});
           if (!tracer.wantsShadowRay(surf[k])) continue;
           V3 o = tracer.shadowOrigin(surf[k]);
           shadow_valid[k] = -1;
@@ -831,7 +959,13 @@ void RayTracer::render(const Camera& camera, int width, int height, const Rect& 
           out[3] = 255;
         }
       }
+    for (float n = nearest.load();
+         local_nearest < n && !nearest.compare_exchange_weak(n, local_nearest);) {
+    }
   });
+  // Seen nothing: keep the last distance.
+  if (float n = nearest.load(); n < std::numeric_limits<float>::infinity()) top.nearest = n;
+  return stats;
 }
 
 }  // namespace dmmr

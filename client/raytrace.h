@@ -1,9 +1,11 @@
 // Ray-traced rendering on the clients (the Sensors 2022 paper's renderer):
 // Embree over the same scene, objects and camera as the raster path, no GL.
 // One BVH per unique geometry (RtMesh), built when the geometry is loaded and
-// shared by every instance; a top level over the frame's objects, rebuilt
-// per frame with transforms made camera-relative in double first (as the
-// raster path does), so that scenes far from the origin keep precision.
+// shared by every instance; a top level over the frame's objects, kept from
+// frame to frame and changed only where the objects did, with transforms
+// made relative to an anchor near the camera in double first (as the raster
+// path makes them camera-relative), so that scenes far from the origin keep
+// precision.
 //
 // Shading with every effect off is the raster shader's (common/draw.cpp):
 // two-sided headlight, base = diffuse * vertex colour * texture, colour =
@@ -59,10 +61,28 @@ class RtMesh {
 };
 
 struct RtInstance {
+  static constexpr uint32_t kNoObject = UINT32_MAX;
   const RtMesh* mesh = nullptr;
   Mat4d object_to_world;
   SurfaceEffect effect = SurfaceEffect::None;
+  // Which object this is, so that the top level can keep it from one
+  // render to the next (kNoObject: the instance's index in the list).
+  uint32_t object = kNoObject;
 };
+
+// What one RayTracer::render did to the top level.
+struct RtRenderStats {
+  uint32_t updated = 0;     // instances bound, moved or removed
+  bool rebuilt = false;     // the top level's BVH was built again
+  bool reanchored = false;  // a new anchor: every transform set again
+  double top_ms = 0;        // wall time of the top level's update
+};
+
+// How far (in nearest surface distances) the eye may move from the top
+// level's anchor before the anchor moves to the eye: a point's float error
+// in anchor space is then at most (1 + kAnchorReach) times its error in eye
+// space, relative to its distance from the eye (docs/raytrace.md).
+inline constexpr double kAnchorReach = 16;
 
 class RayTracer {
  public:
@@ -80,12 +100,15 @@ class RayTracer {
   // Renders `region` of a width x height frame: one primary ray through each
   // pixel's centre, into `rgba` (region-sized, RGBA8, bottom row first, as
   // Renderer::readPixels gives). `textures[i]` is texture file i (null:
-  // untextured). Instances are in ascending object order (as the raster
-  // path draws them; exact distance ties are rare and count in the error).
-  void render(const Camera& camera, int width, int height, const Rect& region,
-              const std::vector<RtInstance>& instances,
-              const std::vector<const TextureData*>& textures, const RayOptions& opts,
-              std::vector<uint8_t>* rgba, Rgb background = {});
+  // untextured). The scene is exactly `instances` (an object at most once;
+  // null meshes skipped); the top level keeps them for the next call, so
+  // a list like the last one is cheap, and the same list costs nothing.
+  // A mesh may be destroyed between calls (it leaves the top level then),
+  // never during one.
+  RtRenderStats render(const Camera& camera, int width, int height, const Rect& region,
+                       const std::vector<RtInstance>& instances,
+                       const std::vector<const TextureData*>& textures, const RayOptions& opts,
+                       std::vector<uint8_t>* rgba, Rgb background = {});
 
  private:
   struct Impl;

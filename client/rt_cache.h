@@ -44,6 +44,11 @@ class RtCache {
   // does). Keep the pointer until the frame is drawn.
   std::shared_ptr<const RtMesh> acquire(uint32_t geometry);
 
+  // Whether the level holds `geometry`'s mesh now (no load, no recency).
+  bool holds(uint32_t geometry) const {
+    return geometry < meshes_.size() && meshes_[geometry] != nullptr;
+  }
+
   // Texture files by index, for RayTracer::render.
   const std::vector<const TextureData*>& textures() const { return texture_ptrs_; }
 

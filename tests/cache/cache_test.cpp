@@ -51,8 +51,8 @@ struct PlantFixture {
 };
 
 PlantFixture& plant() {
-  static PlantFixture* p = new PlantFixture;
-  return *p;
+  static PlantFixture p;  // removed (its temporary directory too) at exit
+  return p;
 }
 
 // GPU memory as a counter: what is live now and at most.

@@ -4,6 +4,7 @@
 // comparison with the raster path is raytrace_raster_test.cpp.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <iostream>
 
@@ -250,4 +251,119 @@ TEST(RayTrace, BadInputIsAnError) {
   auto m = other.build(quad(0, 1, 0, 1, 1, 1, 1));
   EXPECT_THROW(
       rt.render(cam, kW, kH, {0, 0, kW, kH}, {{m.get(), Mat4d::identity()}}, {}, {}, &rgba), Error);
+}
+
+// ---- the top level, kept from call to call ---------------------------------
+
+namespace {
+
+// A row of coloured boxes on a floor, object i at x = 2 i.
+struct Row {
+  std::unique_ptr<RtMesh> floor, box;
+  std::vector<RtInstance> all;
+  Row(RayTracer& rt, int n) {
+    floor = rt.build(quad(-4, 4 * n, -6, 6, 0.6f, 0.6f, 0.6f));
+    box = rt.build(box_(0.3f, 0.5f, 0.9f));
+    all.push_back({floor.get(), Mat4d::identity(), SurfaceEffect::None, 0});
+    for (int i = 0; i < n; ++i)
+      all.push_back(
+          {box.get(), Mat4d::translate({2.0 * i, 0, 0}), SurfaceEffect::None, uint32_t(i + 1)});
+  }
+  static GeometryData box_(float r, float g, float b) {
+    return rtscenes::box({-0.5, -0.5, 0}, {0.5, 0.5, 1}, r, g, b);
+  }
+};
+
+}  // namespace
+
+TEST(RayTraceTopLevel, TheSameObjectsAgainCostNothingAndGiveTheSamePixels) {
+  RayTracer rt(2);
+  Row row(rt, 8);
+  Camera cam = lookAt({4, -12, 6}, {6, 0, 0}, kW, kH);
+  std::vector<uint8_t> a, b;
+  RtRenderStats first = rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a);
+  EXPECT_TRUE(first.rebuilt);
+  EXPECT_EQ(first.updated, 2 * row.all.size()) << "each bound and placed once";
+  RtRenderStats again = rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &b);
+  EXPECT_EQ(again.updated, 0u);
+  EXPECT_FALSE(again.rebuilt);
+  EXPECT_FALSE(again.reanchored);
+  EXPECT_EQ(a, b);
+}
+
+// Whatever came before, a frame shows exactly its own objects: the pixels of
+// a kept top level equal a fresh tracer's after objects leave, come back,
+// change mesh and move, and after a mesh is destroyed between frames.
+TEST(RayTraceTopLevel, AKeptTopLevelRendersExactlyTheGivenObjects) {
+  RayTracer kept(2);
+  Row row(kept, 8);
+  auto red = kept.build(Row::box_(0.9f, 0.1f, 0.1f));
+  Camera cam = lookAt({4, -12, 6}, {6, 0, 0}, kW, kH);
+  auto fresh = [&](const std::vector<RtInstance>& inst) {
+    RayTracer rt(2);  // meshes of another tracer are refused: rebuild them here
+    auto floor = rt.build(quad(-4, 32, -6, 6, 0.6f, 0.6f, 0.6f));
+    auto blue = rt.build(Row::box_(0.3f, 0.5f, 0.9f)), r = rt.build(Row::box_(0.9f, 0.1f, 0.1f));
+    std::vector<RtInstance> mine = inst;
+    for (RtInstance& in : mine)
+      in.mesh = in.mesh == row.floor.get() ? floor.get()
+                : in.mesh == red.get()     ? r.get()
+                                           : blue.get();
+    std::vector<uint8_t> out;
+    rt.render(cam, kW, kH, {0, 0, kW, kH}, mine, {}, {}, &out);
+    return out;
+  };
+  auto check = [&](const std::vector<RtInstance>& inst, const char* what) {
+    std::vector<uint8_t> out;
+    kept.render(cam, kW, kH, {0, 0, kW, kH}, inst, {}, {}, &out);
+    EXPECT_EQ(out, fresh(inst)) << what;
+  };
+  check(row.all, "all");
+  std::vector<RtInstance> some(row.all.begin(), row.all.begin() + 4);
+  check(some, "the last five boxes left");
+  some.push_back(row.all[7]);
+  some[2].mesh = red.get();
+  some[1].object_to_world = Mat4d::translate({1, 2, 0});
+  check(some, "one back, one red, one moved");
+  std::reverse(some.begin(), some.end());
+  check(some, "the same objects in another order");
+  const RtMesh* gone = red.get();
+  some.erase(std::remove_if(some.begin(), some.end(),
+                            [&](const RtInstance& in) { return in.mesh == gone; }),
+             some.end());
+  red.reset();  // destroyed between frames: its slot leaves the top level
+  check(some, "after the red mesh was destroyed");
+  check(row.all, "all again");
+}
+
+TEST(RayTraceTopLevel, TheAnchorFollowsAnEyeThatMovesFarAndThenMatchesAFreshTracer) {
+  RayTracer kept(2);
+  Row row(kept, 8);
+  Camera near_cam = lookAt({4, -12, 6}, {6, 0, 0}, kW, kH);
+  std::vector<uint8_t> a;
+  kept.render(near_cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a);
+  // A small step (well under kAnchorReach nearest surfaces) keeps the anchor.
+  Camera step = lookAt({4.5, -12, 6}, {6, 0, 0}, kW, kH);
+  EXPECT_FALSE(kept.render(step, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a).reanchored);
+  // Far away: a new anchor at the eye, every transform set again, and the
+  // pixels a fresh tracer (anchored at the same eye) gives.
+  Camera far_cam = lookAt({4, -12 - 20 * kAnchorReach, 6}, {6, 0, 0}, kW, kH);
+  RtRenderStats s = kept.render(far_cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a);
+  EXPECT_TRUE(s.reanchored);
+  EXPECT_EQ(s.updated, row.all.size());
+  RayTracer other(2);
+  Row row2(other, 8);
+  std::vector<uint8_t> b;
+  other.render(far_cam, kW, kH, {0, 0, kW, kH}, row2.all, {}, {}, &b);
+  EXPECT_EQ(a, b);
+}
+
+TEST(RayTraceTopLevel, AnObjectGivenTwiceIsAnError) {
+  RayTracer rt(1);
+  Row row(rt, 2);
+  std::vector<RtInstance> twice = row.all;
+  twice.push_back(row.all[1]);
+  std::vector<uint8_t> out;
+  Camera cam = lookAt({4, -12, 6}, {0, 0, 0}, kW, kH);
+  EXPECT_THROW(rt.render(cam, kW, kH, {0, 0, kW, kH}, twice, {}, {}, &out), Error);
+  EXPECT_NO_THROW(rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &out));
 }

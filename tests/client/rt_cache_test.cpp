@@ -41,8 +41,8 @@ struct PlantFixture {
 };
 
 PlantFixture& plant() {
-  static PlantFixture* p = new PlantFixture;
-  return *p;
+  static PlantFixture p;  // removed (its temporary directory too) at exit
+  return p;
 }
 
 // Bytes of live fake meshes, and how many were built.

@@ -81,8 +81,8 @@ struct ReplicatedPlant {
 };
 
 ReplicatedPlant& scene() {
-  static ReplicatedPlant* s = new ReplicatedPlant;
-  return *s;
+  static ReplicatedPlant s;  // removed (its temporary directory too) at exit
+  return s;
 }
 
 }  // namespace

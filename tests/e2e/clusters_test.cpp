@@ -59,8 +59,8 @@ struct DenseScene {
 };
 
 DenseScene& denseScene() {
-  static DenseScene* s = new DenseScene;  // built once per test binary
-  return *s;
+  static DenseScene s;  // built once per test binary, removed at exit
+  return s;
 }
 
 void expectIdentical(const std::string& a, const std::string& b) {

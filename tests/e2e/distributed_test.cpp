@@ -98,8 +98,8 @@ void expectFramesIntact(const std::string& reference, const std::string& out) {
 }
 
 SmallScene& smallScene() {
-  static SmallScene* s = new SmallScene;  // built once per test binary
-  return *s;
+  static SmallScene s;  // built once per test binary, removed at exit
+  return s;
 }
 
 }  // namespace
@@ -411,8 +411,8 @@ struct LongPath {
   }
 };
 LongPath& longPath() {
-  static LongPath* p = new LongPath;
-  return *p;
+  static LongPath p;  // removed (its temporary directory too) at exit
+  return p;
 }
 
 // Runs the long walkthrough with 2 clients and `extra` options, messages
@@ -689,6 +689,22 @@ TEST(RayTraced, DistributedFramesEqualOneClientsAndStayCloseToTheReference) {
     EXPECT_GT(d.diff.psnr, 25.0) << d.name;
     EXPECT_LT(d.diff.differing_pixels, 160 * 120 / 10) << d.name;
   }
+}
+
+// Shadows need casters beyond a tile's list: each client adds the light's
+// casters for the whole frame, so the tiling changes no pixel.
+TEST(RayTraced, ShadowedFramesDoNotDependOnTheTiling) {
+  SmallScene& s = smallScene();
+  std::string one = s.dir / "rt-shadow-c1", tiles = s.dir / "rt-shadow-c3-tiles";
+  const std::string shadows = "--renderer raytrace --shadows --light 0.8,0.1,0.3 ";
+  int status = 0;
+  std::string log = s.render(1, one, shadows, &status);
+  ASSERT_EQ(status, 0) << log;
+  log = s.render(3, tiles, shadows + "--balance tiles-dynamic --tile 24x16", &status);
+  ASSERT_EQ(status, 0) << log;
+  std::vector<FrameDiff> diffs = compareDirectories(one, tiles);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
 }
 
 TEST(RayTraced, CorruptGeometryIsSkippedByNameAndTheRunGoesOn) {

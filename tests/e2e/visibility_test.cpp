@@ -88,8 +88,8 @@ struct PlantScene {
 };
 
 PlantScene& plant() {
-  static PlantScene* s = new PlantScene;
-  return *s;
+  static PlantScene s;  // removed (its temporary directory too) at exit
+  return s;
 }
 
 // Throws (failing the test) when the stats have no such column.
