@@ -861,6 +861,7 @@ class RenderStage {
     const std::vector<uint32_t>& needed = neededObjects(v);
     const uint64_t stamp = ++rs.stamp;
     bool changed = false;
+    st.visible = 0;  // the objects traced (the visibility stage passed them all)
     for (uint32_t index : needed) {
       const ObjectBounds& o = scene_.objects[index];
       if (rs.geometry_stamp[o.geometry] != stamp) {  // one lookup per geometry
@@ -881,31 +882,42 @@ class RenderStage {
     }
     if (changed) {
       // A new top level: what this job needs, and what recent jobs needed
-      // that the device level still holds.
-      std::vector<RtInstance> next;
-      std::vector<std::shared_ptr<const RtMesh>> pins;
-      next.reserve(needed.size());
-      for (size_t i = 0; i < rs.instances.size(); ++i) {
+      // that the device level still holds. Changed in place (a leaving
+      // object's place taken by the last), so that the tracer finds most
+      // objects where they were.
+      for (size_t i = 0; i < rs.instances.size();) {
         uint32_t index = rs.instances[i].object;
-        rs.top_index[index] = RayStage::kNone;
-        if (rs.needed_stamp[index] != stamp &&
-            job.frame + 1 - rs.last_needed[index] <= RayStage::kKeepFrames &&
-            rs.meshes.holds(scene_.objects[index].geometry)) {
-          next.push_back(rs.instances[i]);
-          pins.push_back(std::move(rs.pinned[i]));
+        bool keep = rs.needed_stamp[index] == stamp ||
+                    (job.frame + 1 - rs.last_needed[index] <= RayStage::kKeepFrames &&
+                     rs.meshes.holds(scene_.objects[index].geometry));
+        if (keep) {
+          ++i;
+          continue;
         }
+        rs.top_index[index] = RayStage::kNone;
+        if (i + 1 != rs.instances.size()) {
+          rs.instances[i] = rs.instances.back();
+          rs.pinned[i] = std::move(rs.pinned.back());
+          rs.top_index[rs.instances[i].object] = uint32_t(i);
+        }
+        rs.instances.pop_back();
+        rs.pinned.pop_back();
       }
       for (uint32_t index : needed) {
         if (rs.needed_stamp[index] != stamp) continue;  // unreadable
         const ObjectBounds& o = scene_.objects[index];
         const std::shared_ptr<const RtMesh>& mesh = rs.job_meshes[rs.geometry_slot[o.geometry]];
+        uint32_t at = rs.top_index[index];
+        if (at != RayStage::kNone) {  // there; its mesh may have been built again
+          rs.instances[at].mesh = mesh.get();
+          rs.pinned[at] = mesh;
+          continue;
+        }
         SurfaceEffect effect = index < effects_.size() ? effects_[index] : SurfaceEffect::None;
-        next.push_back({mesh.get(), o.transform, effect, index});
-        pins.push_back(mesh);
+        rs.top_index[index] = uint32_t(rs.instances.size());
+        rs.instances.push_back({mesh.get(), o.transform, effect, index});
+        rs.pinned.push_back(mesh);
       }
-      for (size_t i = 0; i < next.size(); ++i) rs.top_index[next[i].object] = uint32_t(i);
-      rs.instances.swap(next);
-      rs.pinned.swap(pins);
     }
     auto tr = Clock::now();
     RtRenderStats top = rs.tracer.render(job.camera, job.width, job.height, job.region,

@@ -253,16 +253,37 @@ struct TopSlot {
 // while the camera stays within kAnchorReach nearest hits of the anchor.
 struct TopLevel {
   RTCScene scene = nullptr, empty = nullptr;
-  std::vector<TopSlot> slots;                      // slot s is instance geometry s
-  std::vector<FrameInstance> info;                 // by slot, for shading
-  std::unordered_map<uint32_t, uint32_t> slot_of;  // key -> slot
-  std::vector<uint32_t> free;                      // unused slots
-  std::vector<uint32_t> order;                     // slot of each instance of the last call
+  std::vector<TopSlot> slots;       // slot s is instance geometry s
+  std::vector<FrameInstance> info;  // by slot, for shading
+  // key -> slot (kNoSlot: none): a vector for the keys objects have (dense,
+  // below kDenseKeys), a map beyond.
+  static constexpr uint32_t kNoSlot = UINT32_MAX, kDenseKeys = 1u << 24;
+  std::vector<uint32_t> dense_slot;
+  std::unordered_map<uint32_t, uint32_t> sparse_slot;
+  std::vector<uint32_t> free;   // unused slots
+  std::vector<uint32_t> order;  // slot of each instance of the last call
   Vec3d anchor;
   bool anchored = false;
   uint64_t anchor_gen = 0, stamp = 0;
   float nearest = 0;   // the last call's nearest primary hit (eye depth; 0: none yet)
   bool dirty = false;  // changed since the last commit
+
+  uint32_t slotOf(uint32_t key) const {
+    if (key < kDenseKeys) return key < dense_slot.size() ? dense_slot[key] : kNoSlot;
+    auto it = sparse_slot.find(key);
+    return it == sparse_slot.end() ? kNoSlot : it->second;
+  }
+  void setSlotOf(uint32_t key, uint32_t s) {
+    if (key >= kDenseKeys) {
+      if (s == kNoSlot)
+        sparse_slot.erase(key);
+      else
+        sparse_slot[key] = s;
+      return;
+    }
+    if (key >= dense_slot.size()) dense_slot.resize(size_t(key) + 1, kNoSlot);
+    dense_slot[key] = s;
+  }
 
   // Binds slot `s` to `mesh` (null: the empty scene, disabled).
   void bind(uint32_t s, const EmbreeMesh* mesh) {
@@ -733,11 +754,6 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
     Vec3d l = ll > 0 ? opts.light / ll : Vec3d{0, 0, 1};
     f.light = {float(l.x), float(l.y), float(l.z)};
   }
-  for (const RtInstance& in : instances) {
-    const auto* mesh = dynamic_cast<const EmbreeMesh*>(in.mesh);
-    if (in.mesh && (!mesh || mesh->dev != impl_->dev))
-      throw Error("ray tracer: an instance's mesh was built by another RayTracer");
-  }
 
   // The top level: only what differs from the last call is touched.
   EmbreeDevice& d = *impl_->dev;
@@ -761,15 +777,12 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
     top.order.resize(instances.size());
     for (size_t i = 0; i < instances.size(); ++i) {
       const RtInstance& in = instances[i];
-      const auto* mesh = static_cast<const EmbreeMesh*>(in.mesh);
-      if (!mesh) continue;
+      if (!in.mesh) continue;
       const uint32_t key = in.object != RtInstance::kNoObject ? in.object : uint32_t(i);
       uint32_t s = i < last ? top.order[i] : UINT32_MAX;
       if (s >= top.slots.size() || !top.slots[s].used || top.slots[s].key != key) {
-        auto it = top.slot_of.find(key);
-        if (it != top.slot_of.end()) {
-          s = it->second;
-        } else {
+        s = top.slotOf(key);
+        if (s == TopLevel::kNoSlot) {
           if (!top.free.empty()) {
             s = top.free.back();
             top.free.pop_back();
@@ -791,7 +804,7 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
           top.slots[s].used = true;
           top.slots[s].key = key;
           top.slots[s].anchor_gen = 0;  // no transform yet
-          top.slot_of[key] = s;
+          top.setSlotOf(key, s);
         }
       }
       TopSlot& t = top.slots[s];
@@ -799,7 +812,11 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
         throw Error("ray tracer: object " + std::to_string(key) + " given twice in one frame");
       t.stamp = stamp;
       top.order[i] = s;
-      if (t.mesh != mesh) {
+      // Checked where bound: a slot's mesh equal to this one was.
+      if (static_cast<const RtMesh*>(t.mesh) != in.mesh) {
+        const auto* mesh = dynamic_cast<const EmbreeMesh*>(in.mesh);
+        if (!mesh || mesh->dev != impl_->dev)
+          throw Error("ray tracer: an instance's mesh was built by another RayTracer");
         top.bind(s, mesh);
         ++stats.updated;
       }
@@ -829,7 +846,7 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
       if (!t.used || t.stamp == stamp) continue;
       top.bind(s, nullptr);
       t.used = false;
-      top.slot_of.erase(t.key);
+      top.setSlotOf(t.key, TopLevel::kNoSlot);
       top.free.push_back(s);
       ++stats.updated;
     }
