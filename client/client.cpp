@@ -920,8 +920,10 @@ class RenderStage {
       }
     }
     auto tr = Clock::now();
+    RayOptions opts = ray_opts_;
+    opts.stride = job.ray_stride;  // the server's choice for this frame
     RtRenderStats top = rs.tracer.render(job.camera, job.width, job.height, job.region,
-                                         rs.instances, rs.meshes.textures(), ray_opts_, &rgba_);
+                                         rs.instances, rs.meshes.textures(), opts, &rgba_);
     st.render_ms = msSince(tr) - top.top_ms;
     st.prepare_ms = top.top_ms;  // the top level's update
     rs.job_meshes.clear();       // meshes evicted during the gather and not kept are freed now

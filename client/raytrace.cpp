@@ -739,6 +739,9 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
   if (width <= 0 || height <= 0 || !insideFrame(region, width, height))
     throw Error("ray tracer: region outside the " + std::to_string(width) + "x" +
                 std::to_string(height) + " frame");
+  if (opts.stride < 1 || opts.stride > kMaxRayStride)
+    throw Error("ray tracer: stride " + std::to_string(opts.stride) + " outside 1 to " +
+                std::to_string(kMaxRayStride));
   std::lock_guard<std::mutex> render_lock(impl_->render_mutex);
   rgba->assign(size_t(region.area()) * 4, 0);
   RtRenderStats stats;
@@ -875,22 +878,33 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
   };
   const V3 right = column(0), up = column(1), back = column(2);
   std::atomic<float> nearest{std::numeric_limits<float>::infinity()};
+  // The rays: one per pixel, or with a stride one per stride x stride block,
+  // on a grid aligned to the frame (sample (i, j) is pixel (gx0 + i s,
+  // gy0 + j s)) and one sample past the region's last pixel on each axis, so
+  // that every pixel lies between four samples and a pixel's value does not
+  // depend on the region (rayStrideGrid).
+  const RayGrid grid = rayStrideGrid(region, opts.stride);
+  const int st = grid.stride;
+  std::vector<uint8_t> strided;
+  std::vector<uint8_t>& samples = st == 1 ? *rgba : strided;
+  if (st > 1) samples.assign(size_t(grid.w) * size_t(grid.h) * 4, 0);
   constexpr int kTile = 16;
-  const int tiles_x = (region.w + kTile - 1) / kTile, tiles_y = (region.h + kTile - 1) / kTile;
+  const int tiles_x = (grid.w + kTile - 1) / kTile, tiles_y = (grid.h + kTile - 1) / kTile;
   FlushDenormals ftz;
   impl_->pool->run(tiles_x * tiles_y, [&](int tile) {
     Tracer tracer(f);
     float local_nearest = std::numeric_limits<float>::infinity();
-    const int x0 = region.x + (tile % tiles_x) * kTile, y0 = region.y + (tile / tiles_x) * kTile;
-    const int x1 = std::min(x0 + kTile, region.x1()), y1 = std::min(y0 + kTile, region.y1());
+    const int x0 = (tile % tiles_x) * kTile, y0 = (tile / tiles_x) * kTile;  // samples
+    const int x1 = std::min(x0 + kTile, grid.w), y1 = std::min(y0 + kTile, grid.h);
     // 4x4 packets of coherent primary rays, then each ray's shading.
     for (int py = y0; py < y1; py += 4)
       for (int px = x0; px < x1; px += 4) {
         RTCRayHit16 rh;
         alignas(64) int valid[16];
         for (int k = 0; k < 16; ++k) {
-          int x = px + (k & 3), y = py + (k >> 2);
-          valid[k] = x < x1 && y < y1 ? -1 : 0;
+          int i = px + (k & 3), j = py + (k >> 2);
+          valid[k] = i < x1 && j < y1 ? -1 : 0;
+          const int x = grid.x + i * st, y = grid.y + j * st;  // the sample's pixel
           float dx = float(((x + 0.5) / width * 2 - 1) * tx);
           float dy = float(((y + 0.5) / height * 2 - 1) * ty);
           V3 dir = right * dx + up * dy - back;
@@ -964,12 +978,11 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
         }
         for (int k = 0; k < 16; ++k) {
           if (!valid[k]) continue;
-          int x = px + (k & 3), y = py + (k >> 2);
+          int i = px + (k & 3), j = py + (k >> 2);
           V3 c = f.background;
           if (rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
             c = tracer.light(surf[k], shadow_valid[k] && sh.tfar[k] >= 0, 0);
-          uint8_t* out =
-              &(*rgba)[(size_t(y - region.y) * size_t(region.w) + size_t(x - region.x)) * 4];
+          uint8_t* out = &samples[(size_t(j) * size_t(grid.w) + size_t(i)) * 4];
           out[0] = unorm8(c.x);
           out[1] = unorm8(c.y);
           out[2] = unorm8(c.z);
@@ -982,7 +995,37 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
   });
   // Seen nothing: keep the last distance.
   if (float n = nearest.load(); n < std::numeric_limits<float>::infinity()) top.nearest = n;
+  if (st > 1) upsampleStrided(grid, samples.data(), region, rgba->data());
   return stats;
+}
+
+RayGrid rayStrideGrid(const Rect& region, int stride) {
+  if (stride <= 1 || region.empty()) return {region.x, region.y, region.w, region.h, 1};
+  auto first = [&](int p) { return p / stride; };  // region coordinates are >= 0
+  int i0 = first(region.x), j0 = first(region.y);
+  return {i0 * stride, j0 * stride, first(region.x1() - 1) - i0 + 2,
+          first(region.y1() - 1) - j0 + 2, stride};
+}
+
+void upsampleStrided(const RayGrid& g, const uint8_t* samples, const Rect& region, uint8_t* rgba) {
+  const float inv = 1.f / float(g.stride);
+  for (int y = region.y; y < region.y1(); ++y) {
+    const int j = (y - g.y) / g.stride;
+    const float fy = float(y - g.y - j * g.stride) * inv;
+    for (int x = region.x; x < region.x1(); ++x) {
+      const int i = (x - g.x) / g.stride;
+      const float fx = float(x - g.x - i * g.stride) * inv;
+      const uint8_t* a = &samples[(size_t(j) * size_t(g.w) + size_t(i)) * 4];
+      const uint8_t* b = a + 4;
+      const uint8_t* c = a + size_t(g.w) * 4;
+      const uint8_t* d = c + 4;
+      uint8_t* out = &rgba[(size_t(y - region.y) * size_t(region.w) + size_t(x - region.x)) * 4];
+      for (int ch = 0; ch < 4; ++ch) {
+        float top = a[ch] + (b[ch] - a[ch]) * fx, bottom = c[ch] + (d[ch] - c[ch]) * fx;
+        out[ch] = uint8_t(top + (bottom - top) * fy + 0.5f);
+      }
+    }
+  }
 }
 
 }  // namespace dmmr

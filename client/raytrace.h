@@ -44,7 +44,28 @@ struct RayOptions {
   // Embree's compact BVH layout: 40% less BVH memory at the same tracing
   // speed on this project's scenes (docs/raytrace.md), so the default.
   bool compact = true;
+  // One primary ray per stride x stride pixels, the rest interpolated
+  // bilinearly (1: every pixel, exact). For moving frames in the
+  // interactive mode; the error is measured in docs/benchmarks.md.
+  int stride = 1;
 };
+
+inline constexpr int kMaxRayStride = 8;
+
+// The samples of a strided frame: sample (i, j), 0 <= i < w, 0 <= j < h, is
+// traced through pixel (x + i stride, y + j stride), where x and y are
+// multiples of the stride (the grid is the frame's, whatever the region),
+// and every pixel of `region` lies in a cell of four samples. Stride 1: the
+// region's pixels. Pure.
+struct RayGrid {
+  int x = 0, y = 0, w = 0, h = 0, stride = 1;
+  friend bool operator==(const RayGrid&, const RayGrid&) = default;
+};
+RayGrid rayStrideGrid(const Rect& region, int stride);
+// Fills `region`'s RGBA8 pixels (bottom row first) by bilinear interpolation
+// between the grid's samples (w x h RGBA8), rounding to nearest.
+void upsampleStrided(const RayGrid& grid, const uint8_t* samples, const Rect& region,
+                     uint8_t* rgba);
 
 enum class SurfaceEffect : uint8_t { None = 0, Mirror = 1, Glass = 2 };
 

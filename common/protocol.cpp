@@ -39,6 +39,7 @@ std::vector<uint8_t> encodeJob(const FrameJob& j) {
   w.u8(j.flush ? 1 : 0);
   w.u32(uint32_t(j.hints.size()));
   w.array(j.hints.data(), j.hints.size());
+  w.u8(j.ray_stride);
   return std::move(w.bytes());
 }
 
@@ -74,6 +75,8 @@ FrameJob decodeJob(const std::vector<uint8_t>& bytes, size_t object_count) {
     in = std::lower_bound(in, j.objects.end(), j.hints[i]);
     if (in == j.objects.end() || *in != j.hints[i]) r.fail("a hint that is not among the objects");
   }
+  j.ray_stride = r.u8("ray stride");
+  if (j.ray_stride < 1 || j.ray_stride > kMaxJobRayStride) r.fail("ray stride outside 1 to 8");
   r.finish();
   return j;
 }

@@ -28,8 +28,14 @@ struct FrameJob {
   // so that a split line that moved does not make a neighbour's visible
   // objects new to it. A hint never changes a pixel, only the order of work.
   std::vector<uint32_t> hints;
+  // Ray-tracing clients: one primary ray per ray_stride x ray_stride pixels,
+  // the rest interpolated (1: every pixel, exact; at most kMaxJobRayStride).
+  // The interactive mode's moving frames (--ray-stride); raster clients
+  // ignore it.
+  uint8_t ray_stride = 1;
   friend bool operator==(const FrameJob&, const FrameJob&) = default;
 };
+inline constexpr uint8_t kMaxJobRayStride = 8;
 
 struct ClientStats {
   // Visibility stage (context 1).

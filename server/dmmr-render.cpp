@@ -10,6 +10,7 @@
 #include "cli_options.h"
 #include "client.h"
 #include "error.h"
+#include "protocol.h"
 #include "server.h"
 
 int main(int argc, char** argv) {
@@ -117,6 +118,10 @@ int main(int argc, char** argv) {
                "raytrace: hard shadows from a directional light (--light)");
   app.add_flag("--reflections", c.ray.reflections,
                "raytrace: mirror reflection and refraction on objects marked so");
+  app.add_option("--ray-stride", s.ray_stride,
+                 "raytrace: one primary ray per NxN pixels, the rest interpolated bilinearly "
+                 "(1: every pixel, exact; the error is in docs/benchmarks.md)")
+      ->check(CLI::Range(1, int(dmmr::kMaxJobRayStride)));
   app.add_option("--ray-depth", c.ray.max_depth, "raytrace: bounces at most")
       ->check(CLI::Range(0, 16));
   std::vector<double> light;
@@ -201,6 +206,15 @@ int main(int argc, char** argv) {
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
+    return 1;
+  }
+  if (s.ray_stride > 1 && (renderer != "raytrace" || s.serve)) {
+    // With --serve the still frame would need a second, full render of the
+    // same pose; not built (docs/raytrace.md).
+    if (!quiet)
+      std::fprintf(stderr,
+                   "dmmr-render: --ray-stride needs --renderer raytrace and a walkthrough "
+                   "(not --serve)\n");
     return 1;
   }
   if (renderer == "raytrace") {

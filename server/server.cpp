@@ -713,6 +713,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
                                           {}}});
           if (opts.visible_weights)
             jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
+          jobs.back().second.ray_stride = uint8_t(opts.ray_stride);
         }
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
@@ -724,6 +725,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
           FrameJob j{f,    cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t]),
                      true, {}};
           if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
+          j.ray_stride = uint8_t(opts.ray_stride);
           return j;
         };
         if (balance == Balance::TilesStatic) {

@@ -46,6 +46,9 @@ struct ServerOptions {
   // Interactive mode (serve.h): poses from viewers instead of the
   // walkthrough, which then only gives the home pose (optional); frames go
   // to the viewers, and to `out` only when it is set.
+  // Ray-tracing clients trace one ray per ray_stride x ray_stride pixels
+  // (FrameJob::ray_stride; 1: every pixel, exact).
+  int ray_stride = 1;
   bool serve = false;
   ServeOptions serve_opts;
 };

@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
+#include <random>
 
 #include "error.h"
 #include "raytrace.h"
@@ -251,6 +253,11 @@ TEST(RayTrace, BadInputIsAnError) {
   auto m = other.build(quad(0, 1, 0, 1, 1, 1, 1));
   EXPECT_THROW(
       rt.render(cam, kW, kH, {0, 0, kW, kH}, {{m.get(), Mat4d::identity()}}, {}, {}, &rgba), Error);
+  for (int stride : {0, kMaxRayStride + 1}) {
+    RayOptions o;
+    o.stride = stride;
+    EXPECT_THROW(rt.render(cam, kW, kH, {0, 0, kW, kH}, {}, {}, o, &rgba), Error) << stride;
+  }
 }
 
 // ---- the top level, kept from call to call ---------------------------------
@@ -366,4 +373,112 @@ TEST(RayTraceTopLevel, AnObjectGivenTwiceIsAnError) {
   Camera cam = lookAt({4, -12, 6}, {0, 0, 0}, kW, kH);
   EXPECT_THROW(rt.render(cam, kW, kH, {0, 0, kW, kH}, twice, {}, {}, &out), Error);
   EXPECT_NO_THROW(rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &out));
+}
+
+// ---- fewer rays: a pixel stride, upsampled -----------------------------------
+
+TEST(RayStride, TheGridIsTheFramesAndEveryPixelLiesBetweenFourSamples) {
+  EXPECT_EQ(rayStrideGrid({3, 5, 10, 7}, 1), (RayGrid{3, 5, 10, 7, 1}));
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 2000; ++trial) {
+    int s = 2 + int(rng() % 7);
+    Rect r{int(rng() % 300), int(rng() % 300), 1 + int(rng() % 100), 1 + int(rng() % 100)};
+    RayGrid g = rayStrideGrid(r, s);
+    ASSERT_EQ(g.stride, s);
+    EXPECT_EQ(g.x % s, 0);
+    EXPECT_EQ(g.y % s, 0);
+    for (int x : {r.x, r.x1() - 1}) {
+      int i = (x - g.x) / s;
+      EXPECT_GE(x - g.x, 0);
+      EXPECT_LT(i + 1, g.w) << r << " stride " << s;
+    }
+    for (int y : {r.y, r.y1() - 1}) {
+      int j = (y - g.y) / s;
+      EXPECT_GE(y - g.y, 0);
+      EXPECT_LT(j + 1, g.h) << r << " stride " << s;
+    }
+    // No more samples than the cells need.
+    EXPECT_LE(g.w, r.w / s + 3);
+    EXPECT_LE(g.h, r.h / s + 3);
+  }
+}
+
+// Samples taken from a function of the pixel: a linear ramp comes back
+// exactly (to rounding), the samples' own pixels exactly, and any region
+// gives the pixels the whole frame gives.
+TEST(RayStride, UpsamplingIsBilinearAndDoesNotDependOnTheRegion) {
+  const int w = 61, h = 37;
+  auto value = [](int x, int y, int ch) { return (x * 3 + y * 2 + ch * 17) % 256; };
+  auto upsample = [&](const Rect& r, int s) {
+    RayGrid g = rayStrideGrid(r, s);
+    std::vector<uint8_t> samples(size_t(g.w) * g.h * 4), out(size_t(r.area()) * 4);
+    for (int j = 0; j < g.h; ++j)
+      for (int i = 0; i < g.w; ++i)
+        for (int ch = 0; ch < 4; ++ch)
+          samples[(size_t(j) * g.w + i) * 4 + ch] = uint8_t(value(g.x + i * s, g.y + j * s, ch));
+    upsampleStrided(g, samples.data(), r, out.data());
+    return out;
+  };
+  for (int s : {2, 3, 4}) {
+    std::vector<uint8_t> whole = upsample({0, 0, w, h}, s);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int ch = 0; ch < 3; ++ch) {
+          int got = whole[(size_t(y) * w + x) * 4 + ch];
+          if (x % s == 0 && y % s == 0) {
+            EXPECT_EQ(got, value(x, y, ch)) << x << "," << y;
+          }
+        }
+    // A ramp without wrap-around: exact to rounding everywhere.
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        int got = whole[(size_t(y) * w + x) * 4 + 3];  // channel 3: 3x + 2y + 51, no wrap below 256
+        if (3 * (x / s * s + s) + 2 * (y / s * s + s) + 51 < 256) {
+          EXPECT_NEAR(got, 3 * x + 2 * y + 51, 0.5 + 1e-9) << x << "," << y << " stride " << s;
+        }
+      }
+    std::mt19937 rng(s);
+    for (int trial = 0; trial < 50; ++trial) {
+      Rect r{int(rng() % w), int(rng() % h), 0, 0};
+      r.w = 1 + int(rng() % (w - r.x));
+      r.h = 1 + int(rng() % (h - r.y));
+      std::vector<uint8_t> part = upsample(r, s);
+      for (int y = 0; y < r.h; ++y)
+        for (int x = 0; x < r.w; ++x)
+          for (int ch = 0; ch < 4; ++ch)
+            ASSERT_EQ(part[(size_t(y) * r.w + x) * 4 + ch],
+                      whole[(size_t(y + r.y) * w + x + r.x) * 4 + ch])
+                << r << " stride " << s;
+    }
+  }
+}
+
+// Traced: a strided frame's sample pixels are the full frame's, and regions
+// of it are the whole strided frame's pixels.
+TEST(RayStride, StridedFramesKeepTheSampledPixelsAndDoNotDependOnTheRegion) {
+  RayTracer rt(2);
+  Row row(rt, 8);
+  Camera cam = lookAt({4, -12, 6}, {6, 0, 0}, kW, kH);
+  RayOptions full, strided;
+  strided.stride = 3;
+  std::vector<uint8_t> a, b;
+  rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, full, &a);
+  rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, strided, &b);
+  int differing = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      bool diff = std::memcmp(px(a, x, y), px(b, x, y), 4) != 0;
+      if (x % 3 == 0 && y % 3 == 0)
+        EXPECT_FALSE(diff) << x << "," << y;
+      else
+        differing += diff;
+    }
+  EXPECT_GT(differing, 0) << "the interpolated pixels are not all exact";
+  for (Rect r : {Rect{0, 0, 80, 120}, Rect{80, 0, 80, 120}, Rect{17, 23, 61, 41}}) {
+    std::vector<uint8_t> part;
+    rt.render(cam, kW, kH, r, row.all, {}, strided, &part);
+    for (int y = 0; y < r.h; ++y)
+      ASSERT_EQ(0, std::memcmp(&part[size_t(y) * r.w * 4], px(b, r.x, r.y + y), size_t(r.w) * 4))
+          << r << " row " << y;
+  }
 }

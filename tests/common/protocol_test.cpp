@@ -107,6 +107,18 @@ TEST(Protocol, JobRejectsHintsNotAmongItsObjectsOrNotAscending) {
   EXPECT_EQ(jobError(j), "");
 }
 
+TEST(Protocol, JobRoundTripsItsRayStrideAndRejectsOneOutsideOneToEight) {
+  FrameJob j = sampleJob();
+  for (uint8_t s : {1, 2, 8}) {
+    j.ray_stride = s;
+    EXPECT_EQ(decodeJob(encodeJob(j), kObjects), j);
+  }
+  for (uint8_t s : {0, 9, 255}) {
+    j.ray_stride = s;
+    EXPECT_NE(jobError(j).find("ray stride outside 1 to 8"), std::string::npos) << jobError(j);
+  }
+}
+
 TEST(Protocol, JobRejectsARegionOutsideItsFrame) {
   FrameJob j = sampleJob();
   j.region = {600, 0, 41, 10};  // one column past 640
@@ -145,7 +157,7 @@ TEST(Protocol, JobRejectsTruncationTrailingBytesAndABadFlag) {
   trailing.push_back(0);
   EXPECT_NE(errorOf(trailing, true), "");
   std::vector<uint8_t> flag = b;
-  flag[flag.size() - 5] = 2;  // the flush byte, before the (empty) hint list's count
+  flag[flag.size() - 6] = 2;  // the flush byte: then the (empty) hint list's count, the stride
   EXPECT_NE(errorOf(flag, true).find("flush"), std::string::npos) << errorOf(flag, true);
 }
 

@@ -707,6 +707,38 @@ TEST(RayTraced, ShadowedFramesDoNotDependOnTheTiling) {
   for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
 }
 
+// Strided frames sample a grid aligned to the frame: the division and tiling
+// change no pixel, and the interpolation stays close to the full frames.
+TEST(RayTraced, StridedFramesDoNotDependOnTheDivisionAndStayClose) {
+  SmallScene& s = smallScene();
+  std::string full = s.dir / "rt-stride1", one = s.dir / "rt-stride2-c1",
+              tiles = s.dir / "rt-stride2-c3-tiles";
+  int status = 0;
+  std::string log = s.render(1, full, "--renderer raytrace", &status);
+  ASSERT_EQ(status, 0) << log;
+  log = s.render(1, one, "--renderer raytrace --ray-stride 2", &status);
+  ASSERT_EQ(status, 0) << log;
+  log = s.render(3, tiles, "--renderer raytrace --ray-stride 2 --balance tiles-dynamic --tile 24x16",
+                 &status);
+  ASSERT_EQ(status, 0) << log;
+  for (const FrameDiff& d : compareDirectories(one, tiles))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<FrameDiff> diffs = compareDirectories(full, one);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) {
+    EXPECT_GT(d.diff.differing_pixels, 0) << d.name << ": interpolated pixels are not exact";
+    EXPECT_GT(d.diff.psnr, 20.0) << d.name;
+  }
+  // Usage: a stride needs the ray tracer and a walkthrough, and 1 to 8.
+  for (const std::string& bad : {std::string("--ray-stride 2"),
+                                 std::string("--renderer raytrace --ray-stride 9"),
+                                 std::string("--renderer raytrace --ray-stride 0")}) {
+    log = s.render(1, s.dir / "rt-stride-bad", bad, &status);
+    EXPECT_NE(status, 0) << bad << "\n" << log;
+    EXPECT_NE(log.find("--ray-stride"), std::string::npos) << log;
+  }
+}
+
 TEST(RayTraced, CorruptGeometryIsSkippedByNameAndTheRunGoesOn) {
   SmallScene& s = smallScene();
   std::string bad = s.dir / "rt-onebadgeometry";
