@@ -707,6 +707,7 @@ struct RayStage {
   std::vector<uint32_t> geometry_slot;                 // by geometry: its index in job_meshes
   std::vector<std::shared_ptr<const RtMesh>> job_meshes;
   uint64_t stamp = 0;
+  uint64_t list_version = 1;  // of `instances`, for RayTracer::render
   std::vector<uint32_t> required, all_objects;
   // Shadow casters of the last frame seen (the whole frame's, so that every
   // tile and division sees the same set).
@@ -881,6 +882,7 @@ class RenderStage {
       ++st.visible;
     }
     if (changed) {
+      ++rs.list_version;
       // A new top level: what this job needs, and what recent jobs needed
       // that the device level still holds. Changed in place (a leaving
       // object's place taken by the last), so that the tracer finds most
@@ -922,8 +924,9 @@ class RenderStage {
     auto tr = Clock::now();
     RayOptions opts = ray_opts_;
     opts.stride = job.ray_stride;  // the server's choice for this frame
-    RtRenderStats top = rs.tracer.render(job.camera, job.width, job.height, job.region,
-                                         rs.instances, rs.meshes.textures(), opts, &rgba_);
+    RtRenderStats top =
+        rs.tracer.render(job.camera, job.width, job.height, job.region, rs.instances,
+                         rs.meshes.textures(), opts, &rgba_, {}, rs.list_version);
     st.render_ms = msSince(tr) - top.top_ms;
     st.prepare_ms = top.top_ms;  // the top level's update
     rs.job_meshes.clear();       // meshes evicted during the gather and not kept are freed now

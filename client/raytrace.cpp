@@ -265,8 +265,9 @@ struct TopLevel {
   Vec3d anchor;
   bool anchored = false;
   uint64_t anchor_gen = 0, stamp = 0;
-  float nearest = 0;   // the last call's nearest primary hit (eye depth; 0: none yet)
-  bool dirty = false;  // changed since the last commit
+  float nearest = 0;          // the last call's nearest primary hit (eye depth; 0: none yet)
+  uint64_t list_version = 0;  // the caller's version of the list it holds (0: none)
+  bool dirty = false;         // changed since the last commit
 
   uint32_t slotOf(uint32_t key) const {
     if (key < kDenseKeys) return key < dense_slot.size() ? dense_slot[key] : kNoSlot;
@@ -734,8 +735,8 @@ class Tracer {
 RtRenderStats RayTracer::render(const Camera& camera, int width, int height, const Rect& region,
                                 const std::vector<RtInstance>& instances,
                                 const std::vector<const TextureData*>& textures,
-                                const RayOptions& opts, std::vector<uint8_t>* rgba,
-                                Rgb background) {
+                                const RayOptions& opts, std::vector<uint8_t>* rgba, Rgb background,
+                                uint64_t list_version) {
   if (width <= 0 || height <= 0 || !insideFrame(region, width, height))
     throw Error("ray tracer: region outside the " + std::to_string(width) + "x" +
                 std::to_string(height) + " frame");
@@ -775,83 +776,89 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
       ++top.anchor_gen;
       stats.reanchored = true;
     }
-    const uint64_t stamp = ++top.stamp;
-    const size_t last = top.order.size();
-    top.order.resize(instances.size());
-    for (size_t i = 0; i < instances.size(); ++i) {
-      const RtInstance& in = instances[i];
-      if (!in.mesh) continue;
-      const uint32_t key = in.object != RtInstance::kNoObject ? in.object : uint32_t(i);
-      uint32_t s = i < last ? top.order[i] : UINT32_MAX;
-      if (s >= top.slots.size() || !top.slots[s].used || top.slots[s].key != key) {
-        s = top.slotOf(key);
-        if (s == TopLevel::kNoSlot) {
-          if (!top.free.empty()) {
-            s = top.free.back();
-            top.free.pop_back();
-          } else {
-            RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
-            if (!g) {
-              d.check("creating an instance");
-              throw Error("Embree: creating an instance failed");
+    // The caller's promise: the same list as last time. Nothing to compare.
+    const bool same =
+        list_version != 0 && list_version == top.list_version && !stats.reanchored && !top.dirty;
+    top.list_version = 0;  // until this call's update is complete
+    if (!same) {
+      const uint64_t stamp = ++top.stamp;
+      const size_t last = top.order.size();
+      top.order.resize(instances.size());
+      for (size_t i = 0; i < instances.size(); ++i) {
+        const RtInstance& in = instances[i];
+        if (!in.mesh) continue;
+        const uint32_t key = in.object != RtInstance::kNoObject ? in.object : uint32_t(i);
+        uint32_t s = i < last ? top.order[i] : UINT32_MAX;
+        if (s >= top.slots.size() || !top.slots[s].used || top.slots[s].key != key) {
+          s = top.slotOf(key);
+          if (s == TopLevel::kNoSlot) {
+            if (!top.free.empty()) {
+              s = top.free.back();
+              top.free.pop_back();
+            } else {
+              RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
+              if (!g) {
+                d.check("creating an instance");
+                throw Error("Embree: creating an instance failed");
+              }
+              rtcSetGeometryInstancedScene(g, top.empty);
+              rtcDisableGeometry(g);
+              rtcCommitGeometry(g);
+              s = uint32_t(top.slots.size());
+              rtcAttachGeometryByID(top.scene, g, s);
+              top.slots.push_back({});
+              top.slots.back().geom = g;
+              top.info.push_back({});
             }
-            rtcSetGeometryInstancedScene(g, top.empty);
-            rtcDisableGeometry(g);
-            rtcCommitGeometry(g);
-            s = uint32_t(top.slots.size());
-            rtcAttachGeometryByID(top.scene, g, s);
-            top.slots.push_back({});
-            top.slots.back().geom = g;
-            top.info.push_back({});
+            top.slots[s].used = true;
+            top.slots[s].key = key;
+            top.slots[s].anchor_gen = 0;  // no transform yet
+            top.setSlotOf(key, s);
           }
-          top.slots[s].used = true;
-          top.slots[s].key = key;
-          top.slots[s].anchor_gen = 0;  // no transform yet
-          top.setSlotOf(key, s);
         }
-      }
-      TopSlot& t = top.slots[s];
-      if (t.stamp == stamp)
-        throw Error("ray tracer: object " + std::to_string(key) + " given twice in one frame");
-      t.stamp = stamp;
-      top.order[i] = s;
-      // Checked where bound: a slot's mesh equal to this one was.
-      if (static_cast<const RtMesh*>(t.mesh) != in.mesh) {
-        const auto* mesh = dynamic_cast<const EmbreeMesh*>(in.mesh);
-        if (!mesh || mesh->dev != impl_->dev)
-          throw Error("ray tracer: an instance's mesh was built by another RayTracer");
-        top.bind(s, mesh);
+        TopSlot& t = top.slots[s];
+        if (t.stamp == stamp)
+          throw Error("ray tracer: object " + std::to_string(key) + " given twice in one frame");
+        t.stamp = stamp;
+        top.order[i] = s;
+        // Checked where bound: a slot's mesh equal to this one was.
+        if (static_cast<const RtMesh*>(t.mesh) != in.mesh) {
+          const auto* mesh = dynamic_cast<const EmbreeMesh*>(in.mesh);
+          if (!mesh || mesh->dev != impl_->dev)
+            throw Error("ray tracer: an instance's mesh was built by another RayTracer");
+          top.bind(s, mesh);
+          ++stats.updated;
+        }
+        top.info[s].effect = in.effect;
+        if (t.anchor_gen == top.anchor_gen && t.object_to_world == in.object_to_world) continue;
+        // The transform less the anchor, in double, then float for Embree.
+        Mat4d rel = in.object_to_world;
+        for (int r = 0; r < 3; ++r) rel.at(r, 3) -= top.anchor[r];
+        Mat4d inv;
+        FrameInstance& fi = top.info[s];
+        if (invertAffine(rel, &inv))  // normal matrix = inverse transpose of the 3x3
+          for (int c = 0; c < 3; ++c)
+            for (int r = 0; r < 3; ++r) fi.nrm[c * 3 + r] = float(inv.at(c, r));
+        float xfm[12];  // 3x4 column-major
+        for (int c = 0; c < 4; ++c)
+          for (int r = 0; r < 3; ++r) xfm[c * 3 + r] = float(rel.at(r, c));
+        rtcSetGeometryTransform(t.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+        rtcCommitGeometry(t.geom);
+        t.object_to_world = in.object_to_world;
+        t.anchor_gen = top.anchor_gen;
+        top.dirty = true;
         ++stats.updated;
       }
-      top.info[s].effect = in.effect;
-      if (t.anchor_gen == top.anchor_gen && t.object_to_world == in.object_to_world) continue;
-      // The transform less the anchor, in double, then float for Embree.
-      Mat4d rel = in.object_to_world;
-      for (int r = 0; r < 3; ++r) rel.at(r, 3) -= top.anchor[r];
-      Mat4d inv;
-      FrameInstance& fi = top.info[s];
-      if (invertAffine(rel, &inv))  // normal matrix = inverse transpose of the 3x3
-        for (int c = 0; c < 3; ++c)
-          for (int r = 0; r < 3; ++r) fi.nrm[c * 3 + r] = float(inv.at(c, r));
-      float xfm[12];  // 3x4 column-major
-      for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 3; ++r) xfm[c * 3 + r] = float(rel.at(r, c));
-      rtcSetGeometryTransform(t.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
-      rtcCommitGeometry(t.geom);
-      t.object_to_world = in.object_to_world;
-      t.anchor_gen = top.anchor_gen;
-      top.dirty = true;
-      ++stats.updated;
-    }
-    // Objects of the last call that are not in this one leave.
-    for (uint32_t s = 0; s < top.slots.size(); ++s) {
-      TopSlot& t = top.slots[s];
-      if (!t.used || t.stamp == stamp) continue;
-      top.bind(s, nullptr);
-      t.used = false;
-      top.setSlotOf(t.key, TopLevel::kNoSlot);
-      top.free.push_back(s);
-      ++stats.updated;
+      // Objects of the last call that are not in this one leave.
+      for (uint32_t s = 0; s < top.slots.size(); ++s) {
+        TopSlot& t = top.slots[s];
+        if (!t.used || t.stamp == stamp) continue;
+        top.bind(s, nullptr);
+        t.used = false;
+        top.setSlotOf(t.key, TopLevel::kNoSlot);
+        top.free.push_back(s);
+        ++stats.updated;
+      }
     }
     if (top.dirty) {
       rtcCommitScene(top.scene);
@@ -859,6 +866,7 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
       top.dirty = false;
       stats.rebuilt = true;
     }
+    top.list_version = list_version;
   }
   f.scene = top.scene;
   f.instances = top.info.data();

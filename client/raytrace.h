@@ -125,11 +125,14 @@ class RayTracer {
   // null meshes skipped); the top level keeps them for the next call, so
   // a list like the last one is cheap, and the same list costs nothing.
   // A mesh may be destroyed between calls (it leaves the top level then),
-  // never during one.
+  // never during one. `list_version` (0: none) lets a caller that calls
+  // with one list many times (the tiles of a frame) skip even the
+  // comparison: a nonzero version equal to the last call's promises the
+  // same list, and no mesh of it destroyed since.
   RtRenderStats render(const Camera& camera, int width, int height, const Rect& region,
                        const std::vector<RtInstance>& instances,
                        const std::vector<const TextureData*>& textures, const RayOptions& opts,
-                       std::vector<uint8_t>* rgba, Rgb background = {});
+                       std::vector<uint8_t>* rgba, Rgb background = {}, uint64_t list_version = 0);
 
  private:
   struct Impl;

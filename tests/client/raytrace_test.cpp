@@ -296,6 +296,17 @@ TEST(RayTraceTopLevel, TheSameObjectsAgainCostNothingAndGiveTheSamePixels) {
   EXPECT_FALSE(again.rebuilt);
   EXPECT_FALSE(again.reanchored);
   EXPECT_EQ(a, b);
+  // With a version, the same list is not even compared; a new version is.
+  std::vector<RtInstance> fewer(row.all.begin(), row.all.begin() + 3);
+  std::vector<uint8_t> c, d;
+  rt.render(cam, kW, kH, {0, 0, kW, kH}, fewer, {}, {}, &c, {}, 7);
+  RtRenderStats promised = rt.render(cam, kW, kH, {0, 0, kW, kH}, fewer, {}, {}, &d, {}, 7);
+  EXPECT_EQ(promised.updated, 0u);
+  EXPECT_FALSE(promised.rebuilt);
+  EXPECT_EQ(c, d);
+  RtRenderStats changed = rt.render(cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &d, {}, 8);
+  EXPECT_EQ(changed.updated, 2 * (row.all.size() - fewer.size())) << "bound and placed";
+  EXPECT_EQ(d, a);
 }
 
 // Whatever came before, a frame shows exactly its own objects: the pixels of
