@@ -120,7 +120,8 @@ int main(int argc, char** argv) {
                "raytrace: mirror reflection and refraction on objects marked so");
   app.add_option("--ray-stride", s.ray_stride,
                  "raytrace: one primary ray per NxN pixels, the rest interpolated bilinearly "
-                 "(1: every pixel, exact; the error is in docs/benchmarks.md)")
+                 "(1: every pixel, exact; with --serve, moving frames only; the error is in "
+                 "docs/benchmarks.md)")
       ->check(CLI::Range(1, int(dmmr::kMaxJobRayStride)));
   app.add_option("--ray-depth", c.ray.max_depth, "raytrace: bounces at most")
       ->check(CLI::Range(0, 16));
@@ -208,15 +209,13 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
     return 1;
   }
-  if (s.ray_stride > 1 && (renderer != "raytrace" || s.serve)) {
-    // With --serve the still frame would need a second, full render of the
-    // same pose; not built (docs/raytrace.md).
-    if (!quiet)
-      std::fprintf(stderr,
-                   "dmmr-render: --ray-stride needs --renderer raytrace and a walkthrough "
-                   "(not --serve)\n");
+  if (s.ray_stride > 1 && renderer != "raytrace") {
+    if (!quiet) std::fprintf(stderr, "dmmr-render: --ray-stride needs --renderer raytrace\n");
     return 1;
   }
+  // With --serve the stride is for moving frames; a still is rendered again
+  // with every ray.
+  s.serve_opts.render_stills = s.ray_stride > 1;
   if (renderer == "raytrace") {
     c.raytrace = true;
     // A ray finds the nearest surface itself: nothing to cull, no GL.

@@ -132,8 +132,18 @@ struct ViewerHub::Impl {
     Pose pose;
     double wait_ms;  // from the pose's arrival to its pick
     double picked_ms;
+    // A still frame rendered again (render_stills): sent under the id of
+    // the frame the schedule has in flight for it.
+    bool still = false;
+    uint32_t still_frame = 0;
   };
-  std::map<uint32_t, Picked> picked;  // frame -> the viewer and pose it renders
+  struct StillRender {
+    uint64_t viewer;
+    uint32_t frame;  // the schedule's id for the still
+    Pose pose;
+  };
+  std::deque<StillRender> still_renders;  // due, not yet picked
+  std::map<uint32_t, Picked> picked;      // frame -> the viewer and pose it renders
   struct Viewer {
     uint8_t quality = 80;
     // The viewer's last frame, for its still; and an encoded frame held
@@ -148,6 +158,8 @@ struct ViewerHub::Impl {
     uint64_t viewer;
     Pose pose;
     double wait_ms, picked_ms, done_ms;
+    bool still = false;
+    uint32_t still_frame = 0;
   };
   std::deque<Encode> encodes;
 
@@ -484,6 +496,14 @@ void ViewerHub::Impl::encoderLoop() {
       auto v = viewers.find(e.viewer);
       if (v == viewers.end()) continue;  // left meanwhile
       uint8_t quality = v->second.quality;
+      if (e.still) {  // already in flight for the schedule: send it
+        lock.unlock();
+        FrameDone d = *e.frame;
+        d.frame = e.still_frame;
+        sendTo(e.viewer, encodeFrame(d, e.pose, 0, true));
+        lock.lock();
+        continue;
+      }
       lock.unlock();
       Bytes bytes = encodeFrame(*e.frame, e.pose, quality, false, &e);
       lock.lock();
@@ -509,6 +529,11 @@ void ViewerHub::Impl::encoderLoop() {
     }
     for (const ViewerSchedule::Still& s : schedule.dueStills(nowMs())) {
       const Viewer& v = viewers[s.viewer];
+      if (opts.render_stills) {  // rendered again, exact (nextPose)
+        still_renders.push_back({s.viewer, s.frame, v.last_pose});
+        plan_cv.notify_all();
+        continue;
+      }
       std::shared_ptr<const FrameDone> frame = v.last;
       Pose pose = v.last_pose;
       lock.unlock();
@@ -553,11 +578,21 @@ std::string ViewerHub::start() {
   return "http://" + host + ":" + std::to_string(port) + "/?token=" + h.token;
 }
 
-std::optional<Pose> ViewerHub::nextPose(uint32_t frame) {
+std::optional<Pose> ViewerHub::nextPose(uint32_t frame, bool* exact) {
   Impl& h = *impl_;
   std::unique_lock<std::mutex> lock(h.mu);
+  if (exact) *exact = false;
   for (;;) {
     if (h.stopped) return std::nullopt;
+    while (!h.still_renders.empty()) {
+      Impl::StillRender r = h.still_renders.front();
+      h.still_renders.pop_front();
+      if (!h.viewers.count(r.viewer)) continue;  // left meanwhile
+      double now = nowMs();
+      h.picked[frame] = {r.viewer, r.pose, 0, now, true, r.frame};
+      if (exact) *exact = true;
+      return r.pose;
+    }
     if (auto pick = h.schedule.next()) {
       double now = nowMs();
       h.picked[frame] = {pick->viewer, pick->pose, now - pick->received_ms, now};
@@ -577,7 +612,9 @@ void ViewerHub::frameDone(FrameDone d) {
                  it->second.pose,
                  it->second.wait_ms,
                  it->second.picked_ms,
-                 nowMs()};
+                 nowMs(),
+                 it->second.still,
+                 it->second.still_frame};
   h.picked.erase(it);
   h.encodes.push_back(std::move(e));
   h.encode_cv.notify_all();
@@ -603,6 +640,5 @@ void ViewerHub::stop() {
     timer->async_wait([&h, timer](beast::error_code) { h.ioc.stop(); });
   });
 }
-
 
 }  // namespace dmmr

@@ -28,6 +28,10 @@ struct ServeOptions {
   int max_rate = 240;     // messages a second a viewer may send
   int max_viewers = 8;    // viewers at once; more are refused (HTTP 503)
   int max_rendering = 1;  // a viewer's frames in the render pipeline at once
+  // The moving frames are approximate (--ray-stride): a still frame is the
+  // viewer's last pose rendered again, exact, rather than its last frame
+  // sent again losslessly.
+  bool render_stills = false;
 };
 
 // Parses "[ADDR:]PORT" (ADDR an IPv4 or IPv6 address, IPv6 in brackets, or
@@ -72,8 +76,9 @@ class ViewerHub {
 
   // Planning thread: blocks until some viewer has a pose to render (and
   // room in the pipeline), records that `frame` renders it, and returns it
-  // (rotation as sent). Nothing once stopped.
-  std::optional<Pose> nextPose(uint32_t frame);
+  // (rotation as sent). Nothing once stopped. `*exact` (when given) is true
+  // for a still frame's render (render_stills), which must be exact.
+  std::optional<Pose> nextPose(uint32_t frame, bool* exact = nullptr);
 
   // Assembling thread: `d.frame` (one nextPose returned) is assembled.
   void frameDone(FrameDone d);

@@ -683,8 +683,11 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       if (!assembler.waitForRoom(f)) break;
       Balance balance = trial ? trial->strategy(i) : opts.balance;
       Camera cam;
+      int stride = opts.ray_stride;
       if (hub) {
-        std::optional<Pose> pose = hub->nextPose(f);
+        bool exact = false;
+        std::optional<Pose> pose = hub->nextPose(f, &exact);
+        stride = exact ? 1 : opts.ray_stride;
         if (!pose) break;  // stopped
         cam = Camera{pose->position, {}, pose->fovy_deg, double(v.width) / v.height, near};
         unitRotation(pose->rotation, &cam.rotation);  // checked when decoded
@@ -713,7 +716,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
                                           {}}});
           if (opts.visible_weights)
             jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
-          jobs.back().second.ray_stride = uint8_t(opts.ray_stride);
+          jobs.back().second.ray_stride = uint8_t(stride);
         }
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
@@ -725,7 +728,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
           FrameJob j{f,    cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t]),
                      true, {}};
           if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
-          j.ray_stride = uint8_t(opts.ray_stride);
+          j.ray_stride = uint8_t(stride);
           return j;
         };
         if (balance == Balance::TilesStatic) {

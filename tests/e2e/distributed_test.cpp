@@ -718,8 +718,8 @@ TEST(RayTraced, StridedFramesDoNotDependOnTheDivisionAndStayClose) {
   ASSERT_EQ(status, 0) << log;
   log = s.render(1, one, "--renderer raytrace --ray-stride 2", &status);
   ASSERT_EQ(status, 0) << log;
-  log = s.render(3, tiles, "--renderer raytrace --ray-stride 2 --balance tiles-dynamic --tile 24x16",
-                 &status);
+  log = s.render(
+      3, tiles, "--renderer raytrace --ray-stride 2 --balance tiles-dynamic --tile 24x16", &status);
   ASSERT_EQ(status, 0) << log;
   for (const FrameDiff& d : compareDirectories(one, tiles))
     EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
@@ -729,10 +729,10 @@ TEST(RayTraced, StridedFramesDoNotDependOnTheDivisionAndStayClose) {
     EXPECT_GT(d.diff.differing_pixels, 0) << d.name << ": interpolated pixels are not exact";
     EXPECT_GT(d.diff.psnr, 20.0) << d.name;
   }
-  // Usage: a stride needs the ray tracer and a walkthrough, and 1 to 8.
-  for (const std::string& bad : {std::string("--ray-stride 2"),
-                                 std::string("--renderer raytrace --ray-stride 9"),
-                                 std::string("--renderer raytrace --ray-stride 0")}) {
+  // Usage: a stride needs the ray tracer, and 1 to 8.
+  for (const std::string& bad :
+       {std::string("--ray-stride 2"), std::string("--renderer raytrace --ray-stride 9"),
+        std::string("--renderer raytrace --ray-stride 0")}) {
     log = s.render(1, s.dir / "rt-stride-bad", bad, &status);
     EXPECT_NE(status, 0) << bad << "\n" << log;
     EXPECT_NE(log.find("--ray-stride"), std::string::npos) << log;
