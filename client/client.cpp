@@ -701,8 +701,7 @@ struct RayStage {
   // find it ready (trace()). `pinned[i]` keeps instances[i]'s mesh alive.
   std::vector<RtInstance> instances;
   std::vector<std::shared_ptr<const RtMesh>> pinned;
-  std::vector<uint32_t> top_index;    // by object: its index in `instances` (kNone: absent)
-  std::vector<uint32_t> last_needed;  // by object: the frame + 1 a job last needed it
+  std::vector<uint32_t> top_index;  // by object: its index in `instances` (kNone: absent)
   std::vector<uint64_t> needed_stamp, geometry_stamp;  // by object, by geometry: this job's
   std::vector<uint32_t> geometry_slot;                 // by geometry: its index in job_meshes
   std::vector<std::shared_ptr<const RtMesh>> job_meshes;
@@ -714,10 +713,11 @@ struct RayStage {
   uint32_t casters_frame = UINT32_MAX;
   Camera casters_camera;
   std::vector<uint32_t> casters;
+  // The whole frame's view, for the last frame seen.
+  uint32_t view_frame = UINT32_MAX;
+  Camera view_camera;
+  std::vector<uint32_t> view;
   static constexpr uint32_t kNone = UINT32_MAX;
-  // Frames an object stays in the top level after the last job that needed
-  // it, when the top level changes anyway.
-  static constexpr uint32_t kKeepFrames = 8;
 };
 
 class RenderStage {
@@ -839,12 +839,15 @@ class RenderStage {
   // it), with shadows also the light's casters for the whole frame, with
   // reflections every object. Each one's BVH comes from the device level.
   // The tracer's top level keeps objects from job to job: it changes only
-  // when a job needs an object it lacks, and then keeps what jobs needed in
-  // the last kKeepFrames frames and the device level still holds. Objects
-  // beyond what a job needs change no pixel: a primary ray of the region
-  // meets only objects whose box the region's sub-frustum holds (all in the
-  // list), and a shadow ray from a point in view only casters. The device
-  // level's counts go where the GPU level's do.
+  // when a job needs an object it lacks, and then holds what the job needs
+  // and every other object of the whole frame's view whose BVH the device
+  // level holds, so that the frame's other tiles, and the next frames, seldom
+  // change it again (without that, objects crossing from another client's
+  // tiles rebuilt it many times a frame). Objects beyond what a job needs
+  // change no pixel: a primary ray of the region meets only objects whose
+  // box the region's sub-frustum holds (all in the list), and a shadow ray
+  // from a point in view only casters. The device level's counts go where
+  // the GPU level's do.
   void trace(const VisibleJob& v, ClientStats& st) {
     const FrameJob& job = v.job;
     RayStage& rs = *ray_;
@@ -854,7 +857,6 @@ class RenderStage {
     const size_t objects = scene_.objects.size(), geometries = scene_.manifest.geometries;
     if (rs.top_index.size() != objects) {
       rs.top_index.assign(objects, RayStage::kNone);
-      rs.last_needed.assign(objects, 0);
       rs.needed_stamp.assign(objects, 0);
       rs.geometry_stamp.assign(geometries, 0);
       rs.geometry_slot.assign(geometries, 0);
@@ -875,7 +877,6 @@ class RenderStage {
       const std::shared_ptr<const RtMesh>& mesh = rs.job_meshes[rs.geometry_slot[o.geometry]];
       if (!mesh) continue;  // unreadable geometry: skipped, counted
       rs.needed_stamp[index] = stamp;
-      rs.last_needed[index] = job.frame + 1;
       uint32_t at = rs.top_index[index];
       changed |= at == RayStage::kNone || rs.instances[at].mesh != mesh.get();
       st.triangles += mesh->triangles();
@@ -883,16 +884,25 @@ class RenderStage {
     }
     if (changed) {
       ++rs.list_version;
-      // A new top level: what this job needs, and what recent jobs needed
-      // that the device level still holds. Changed in place (a leaving
-      // object's place taken by the last), so that the tracer finds most
-      // objects where they were.
+      // A new top level: what this job needs, and what else the frame shows
+      // that the device level holds (marked with this job's stamp too).
+      // Changed in place (a leaving object's place taken by the last), so
+      // that the tracer finds most objects where they were.
+      const std::vector<uint32_t>& view = frameObjects(job);
+      for (uint32_t index : view) {
+        if (rs.needed_stamp[index] == stamp) continue;
+        const ObjectBounds& o = scene_.objects[index];
+        if (rs.geometry_stamp[o.geometry] != stamp) {
+          if (!rs.meshes.holds(o.geometry)) continue;  // not built here: not needed here
+          rs.geometry_stamp[o.geometry] = stamp;
+          rs.geometry_slot[o.geometry] = uint32_t(rs.job_meshes.size());
+          rs.job_meshes.push_back(rs.meshes.acquire(o.geometry));  // held: no load
+        }
+        if (rs.job_meshes[rs.geometry_slot[o.geometry]]) rs.needed_stamp[index] = stamp;
+      }
       for (size_t i = 0; i < rs.instances.size();) {
         uint32_t index = rs.instances[i].object;
-        bool keep = rs.needed_stamp[index] == stamp ||
-                    (job.frame + 1 - rs.last_needed[index] <= RayStage::kKeepFrames &&
-                     rs.meshes.holds(scene_.objects[index].geometry));
-        if (keep) {
+        if (rs.needed_stamp[index] == stamp) {
           ++i;
           continue;
         }
@@ -905,21 +915,23 @@ class RenderStage {
         rs.instances.pop_back();
         rs.pinned.pop_back();
       }
-      for (uint32_t index : needed) {
-        if (rs.needed_stamp[index] != stamp) continue;  // unreadable
+      auto add = [&](uint32_t index) {
+        if (rs.needed_stamp[index] != stamp) return;  // unreadable, or not held
         const ObjectBounds& o = scene_.objects[index];
         const std::shared_ptr<const RtMesh>& mesh = rs.job_meshes[rs.geometry_slot[o.geometry]];
         uint32_t at = rs.top_index[index];
         if (at != RayStage::kNone) {  // there; its mesh may have been built again
           rs.instances[at].mesh = mesh.get();
           rs.pinned[at] = mesh;
-          continue;
+          return;
         }
         SurfaceEffect effect = index < effects_.size() ? effects_[index] : SurfaceEffect::None;
         rs.top_index[index] = uint32_t(rs.instances.size());
         rs.instances.push_back({mesh.get(), o.transform, effect, index});
         rs.pinned.push_back(mesh);
-      }
+      };
+      for (uint32_t index : needed) add(index);
+      for (uint32_t index : view) add(index);
     }
     auto tr = Clock::now();
     RayOptions opts = ray_opts_;
@@ -936,6 +948,19 @@ class RenderStage {
     st.uncached += after.uncached - before.uncached;
     st.gpu_resident += after.resident;
     addHostStats(st);
+  }
+
+  // The objects in the whole frame's view (frustum culled through the
+  // skeleton), for the frame's jobs: see trace().
+  const std::vector<uint32_t>& frameObjects(const FrameJob& job) {
+    RayStage& rs = *ray_;
+    if (rs.view_frame != job.frame || !(rs.view_camera == job.camera)) {
+      rs.view.clear();
+      cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(job.camera), &rs.view);
+      rs.view_frame = job.frame;
+      rs.view_camera = job.camera;
+    }
+    return rs.view;
   }
 
   // The objects job `v` needs traced (ascending): see trace().
@@ -1069,15 +1094,15 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   std::vector<SurfaceEffect> effects;
   std::unique_ptr<HostCache> host;
   try {
-    // The skeleton's names choose the ray tracer's effects, and shadows cull
-    // their casters through it; otherwise clients never traverse it.
+    // The skeleton's names choose the ray tracer's effects, and ray-tracing
+    // clients cull their frame's view and shadow casters through it;
+    // rasterising clients never traverse it.
     bool named =
         opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
-    bool casters = opts.raytrace && opts.ray.shadows;
-    scene = loadScene(opts.scene, /*with_skeleton=*/named || casters);
+    scene = loadScene(opts.scene, /*with_skeleton=*/opts.raytrace);
     if (named)
       effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);
-    if (!casters) {
+    if (!opts.raytrace) {
       scene.skeleton.clear();
       scene.skeleton.shrink_to_fit();
     }
