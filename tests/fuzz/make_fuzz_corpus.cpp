@@ -182,6 +182,8 @@ int main(int argc, char** argv) {
   job.flush = false;
   job.hints = {4, 9};
   put("protocol", "job-noflush.bin", message(127 << 1, encodeJob(job)));
+  job.ray_stride = 3;
+  put("protocol", "job-stride.bin", message(31 << 1, encodeJob(job)));
   SubFrame sub;
   sub.frame = 3;
   sub.region = {0, 0, 2, 1};
