@@ -5,7 +5,8 @@
 // needs all its meshes at once (rays go anywhere), so acquire() hands out a
 // shared pointer: a mesh evicted while its frame is still being gathered
 // lives until that frame is drawn, and is then freed; the level itself
-// never holds more than its budget.
+// never holds more than its budget. (The ray-tracing stage pins the meshes
+// of its top level until that changes, docs/raytrace.md.)
 #pragma once
 
 #include <functional>
