@@ -33,19 +33,13 @@ Mat4d projectionMatrix(const Camera& c) {
 }
 
 std::array<Plane, 5> frustumPlanes(const Camera& c) {
-  return frustumPlanes(c, -1, 1, -1, 1);
-}
-
-std::array<Plane, 5> frustumPlanes(const Camera& c, double x0, double x1, double y0, double y1) {
   double ty = std::tan(c.fovy_deg * M_PI / 360.0);
   double tx = ty * c.aspect;
-  // Eye-space planes: inside when n.p + d >= 0 (the camera looks down -Z);
-  // the point at eye depth z of NDC x lies at x tx z, so the left plane is
-  // p.x >= x0 tx (-p.z), and so on.
-  Plane eye[5] = {{{1, 0, x0 * tx}, 0},
-                  {{-1, 0, -x1 * tx}, 0},
-                  {{0, 1, y0 * ty}, 0},
-                  {{0, -1, -y1 * ty}, 0},
+  // Eye-space planes: inside when n.p + d >= 0 (the camera looks down -Z).
+  Plane eye[5] = {{{1, 0, -tx}, 0},
+                  {{-1, 0, -tx}, 0},
+                  {{0, 1, -ty}, 0},
+                  {{0, -1, -ty}, 0},
                   {{0, 0, -1}, -c.near}};
   Mat4d r = Mat4d::rotation(c.rotation);
   std::array<Plane, 5> out;

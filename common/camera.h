@@ -32,10 +32,6 @@ Mat4d projectionMatrix(const Camera& c);
 // World-space frustum planes (left, right, bottom, top, near); the far plane is
 // at infinity and omitted. Points on the inside have distance >= 0.
 std::array<Plane, 5> frustumPlanes(const Camera& c);
-// The planes of the part of the frustum whose normalised device coordinates
-// lie in [x0, x1] x [y0, y1] (the whole frustum: -1, 1, -1, 1, which gives
-// frustumPlanes(c) bit for bit).
-std::array<Plane, 5> frustumPlanes(const Camera& c, double x0, double x1, double y0, double y1);
 
 // The depth (near / eye distance, as the projection writes it) at which the
 // ray through a point of the image first enters `box`, as three linear

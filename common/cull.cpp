@@ -4,12 +4,6 @@
 
 namespace dmmr {
 
-Planes regionPlanes(const Camera& c, int width, int height, const Rect& region, double margin_px) {
-  auto ndc = [](double px, int size) { return px / size * 2 - 1; };
-  return frustumPlanes(c, ndc(region.x - margin_px, width), ndc(region.x1() + margin_px, width),
-                       ndc(region.y - margin_px, height), ndc(region.y1() + margin_px, height));
-}
-
 Planes shadowCasterPlanes(const Planes& view, Vec3d to_light) {
   Planes out = view;
   for (Plane& p : out)

@@ -14,11 +14,6 @@ namespace dmmr {
 // The planes of a (sub-)frustum, inside when distance >= 0.
 using Planes = std::array<Plane, 5>;
 
-// The sub-frustum that `region` of a width x height frame sees, widened by
-// `margin_px` pixels on every side (what a tile or a client's region needs).
-Planes regionPlanes(const Camera& c, int width, int height, const Rect& region,
-                    double margin_px = 1);
-
 // Shadow casters of a directional light: planes that every object able to
 // block the way from a point inside `view` towards the light (direction
 // `to_light`, world space, any length) is not entirely outside. A box B

@@ -375,53 +375,7 @@ TEST(CullObjects, AnEmptySkeletonCullsNothing) {
   EXPECT_EQ(stats.nodes_visited, 0u);
 }
 
-// ---- region planes and shadow casters ---------------------------------------
-
-TEST(RegionPlanes, TheWholeFrameGivesTheFrustumBitForBit) {
-  Rng rng(26);
-  for (int trial = 0; trial < 200; ++trial) {
-    Camera c = randomCamera(rng, 1e5);
-    Planes whole = frustumPlanes(c), region = regionPlanes(c, 640, 480, {0, 0, 640, 480}, 0);
-    for (int i = 0; i < 5; ++i) {
-      EXPECT_EQ(region[i].n, whole[i].n);
-      EXPECT_EQ(region[i].d, whole[i].d);
-    }
-  }
-}
-
-// A point seen through a pixel of the region is inside its planes; one seen
-// through a pixel more than the margin outside it is not.
-TEST(RegionPlanes, HoldWhatTheRegionsPixelsSeeAndNothingBeyondTheMargin) {
-  Rng rng(27);
-  const int w = 320, h = 200;
-  int in = 0, out = 0;
-  for (int trial = 0; trial < 3000; ++trial) {
-    Camera c = randomCamera(rng, 100);
-    c.aspect = double(w) / h;
-    int x = rng.integer(0, w - 1), y = rng.integer(0, h - 1);
-    Rect r{x, y, rng.integer(1, w - x), rng.integer(1, h - y)};
-    Planes planes = regionPlanes(c, w, h, r, 1);
-    // A point at window position (px, py) and eye depth z.
-    double px = rng.real(-20, w + 20), py = rng.real(-20, h + 20), z = rng.real(c.near, 1000);
-    double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
-    Vec3d eye_p{(px / w * 2 - 1) * tx * z, (py / h * 2 - 1) * ty * z, -z};
-    Vec3d p = c.eye + Mat4d::rotation(c.rotation).transformVector(eye_p);
-    bool inside = px >= r.x && px <= r.x1() && py >= r.y && py <= r.y1();
-    bool beyond = px < r.x - 1.01 || px > r.x1() + 1.01 || py < r.y - 1.01 || py > r.y1() + 1.01;
-    if (inside) {
-      ++in;
-      EXPECT_TRUE(insideAll(planes, p))
-          << "trial " << trial << " " << c << " pixel " << px << "," << py;
-    }
-    if (beyond) {
-      ++out;
-      EXPECT_FALSE(insideAll(planes, p))
-          << "trial " << trial << " " << c << " pixel " << px << "," << py;
-    }
-  }
-  EXPECT_GT(in, 100);
-  EXPECT_GT(out, 100);
-}
+// ---- shadow casters -----------------------------------------------------------
 
 // Brute force: a box culled against the caster planes has no point from
 // which a step back along -L (towards where the shadow falls) lands in view.
