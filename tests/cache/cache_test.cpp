@@ -94,7 +94,9 @@ TEST(HostCache, UnlimitedReadsEachFileOnceAndDecodesAsLoadGeometry) {
     for (uint32_t g = 0; g < p.geometries(); ++g) {
       std::optional<GeometryData> data = cache.get(g);
       ASSERT_TRUE(data);
-      if (pass == 0) EXPECT_EQ(*data, loadGeometry(p.scene, g)) << g;
+      if (pass == 0) {
+        EXPECT_EQ(*data, loadGeometry(p.scene, g)) << g;
+      }
     }
   HostCacheStats s = cache.stats();
   EXPECT_EQ(s.misses, p.geometries());

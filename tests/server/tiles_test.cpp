@@ -80,7 +80,9 @@ TEST(DealTiles, EveryTileToExactlyOneClient) {
         Ids expect(tiles);
         for (size_t i = 0; i < tiles; ++i) expect[i] = uint32_t(i);
         EXPECT_EQ(all, expect);
-        if (order == TileOrder::Rows) EXPECT_LE(hi - std::min(lo, hi), 1u);
+        if (order == TileOrder::Rows) {
+          EXPECT_LE(hi - std::min(lo, hi), 1u);
+        }
       }
 }
 
