@@ -11,6 +11,7 @@
 #include <functional>
 #include <future>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <numeric>
@@ -713,10 +714,11 @@ struct RayStage {
   uint32_t casters_frame = UINT32_MAX;
   Camera casters_camera;
   std::vector<uint32_t> casters;
-  // The whole frame's view, for the last frame seen.
-  uint32_t view_frame = UINT32_MAX;
-  Camera view_camera;
+  // The whole frame's view, and the anchor grid, for the last frame seen.
+  uint32_t view_frame = UINT32_MAX, grid_frame = UINT32_MAX;
+  Camera view_camera, grid_camera;
   std::vector<uint32_t> view;
+  double grid = 0;
   static constexpr uint32_t kNone = UINT32_MAX;
 };
 
@@ -732,9 +734,9 @@ class RenderStage {
         rank_(opts.rank),
         ray_opts_(opts.ray),
         effects_(effects) {
-    if (opts.raytrace)
+    if (opts.raytrace) {
       ray_ = std::make_unique<RayStage>(scene, host, opts);
-    else
+    } else
       gl_ = std::make_unique<GlStage>(scene, host, opts.render_context, opts.view, opts.cache);
     if (!opts.raytrace && opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
@@ -936,6 +938,7 @@ class RenderStage {
     auto tr = Clock::now();
     RayOptions opts = ray_opts_;
     opts.stride = job.ray_stride;  // the server's choice for this frame
+    opts.anchor_grid = anchorGrid(job);
     RtRenderStats top =
         rs.tracer.render(job.camera, job.width, job.height, job.region, rs.instances,
                          rs.meshes.textures(), opts, &rgba_, {}, rs.list_version);
@@ -948,6 +951,38 @@ class RenderStage {
     st.uncached += after.uncached - before.uncached;
     st.gpu_resident += after.resident;
     addHostStats(st);
+  }
+
+  // The top level's anchor grid for the frame (RayOptions::anchor_grid): the
+  // power of two at or below 16 times the distance from the eye to the
+  // nearest box of the frame's view (at least the near plane). Every client
+  // computes it from the frame alone, so all use one anchor and distributed
+  // frames equal one client's; the top level is set again only when the
+  // eye crosses into another cell or the grid changes; and since every
+  // visible surface is at least that distance d away, a point's float error
+  // relative to its distance from the eye is at most 1 + 0.87 * 16 = 15
+  // times what eye coordinates give (docs/raytrace.md).
+  static double boxDistance(const Box3d& b, Vec3d p) {
+    double d2 = 0;
+    for (int i = 0; i < 3; ++i) {
+      double e = std::max({b.lo[i] - p[i], 0.0, p[i] - b.hi[i]});
+      d2 += e * e;
+    }
+    return std::sqrt(d2);
+  }
+  double anchorGrid(const FrameJob& job) {
+    RayStage& rs = *ray_;
+    const std::vector<uint32_t>& view = frameObjects(job);
+    if (rs.grid_frame != job.frame || !(rs.grid_camera == job.camera)) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (uint32_t index : view)
+        nearest = std::min(nearest, boxDistance(scene_.objects[index].box, job.camera.eye));
+      double d = std::max(job.camera.near, std::isfinite(nearest) ? nearest : 0.0);
+      rs.grid = std::exp2(std::floor(std::log2(64 * d)));
+      rs.grid_frame = job.frame;
+      rs.grid_camera = job.camera;
+    }
+    return rs.grid;
   }
 
   // The objects in the whole frame's view (frustum culled through the

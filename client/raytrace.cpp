@@ -248,9 +248,8 @@ struct TopSlot {
 
 // The top level, kept from call to call so that a frame whose objects are
 // those of the last one costs no Embree call at all (docs/raytrace.md).
-// Transforms are in world space less `anchor`, a point near the camera:
-// positions keep float precision relative to their distance from the eye
-// while the camera stays within kAnchorReach nearest hits of the anchor.
+// Transforms are in world space less `anchor`, a grid point near the eye
+// (anchorFor), so that positions keep float precision near the camera.
 struct TopLevel {
   RTCScene scene = nullptr, empty = nullptr;
   std::vector<TopSlot> slots;       // slot s is instance geometry s
@@ -265,7 +264,6 @@ struct TopLevel {
   Vec3d anchor;
   bool anchored = false;
   uint64_t anchor_gen = 0, stamp = 0;
-  float nearest = 0;          // the last call's nearest primary hit (eye depth; 0: none yet)
   uint64_t list_version = 0;  // the caller's version of the list it holds (0: none)
   bool dirty = false;         // changed since the last commit
 
@@ -767,11 +765,11 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
     d.check("an earlier call");
     if (instances.size() >= RTC_INVALID_GEOMETRY_ID)
       throw Error("ray tracer: too many objects (" + std::to_string(instances.size()) + ")");
-    // A new anchor (every transform set again) when the eye is farther from
-    // it than kAnchorReach times the nearest surface seen (or the near plane).
-    const double reach = kAnchorReach * std::max(camera.near, double(top.nearest));
-    if (!top.anchored || length(camera.eye - top.anchor) > reach) {
-      top.anchor = camera.eye;
+    // A new anchor (every transform set again) when the eye's grid point
+    // changes.
+    const Vec3d anchor = anchorFor(camera.eye, opts.anchor_grid);
+    if (!top.anchored || !(anchor == top.anchor)) {
+      top.anchor = anchor;
       top.anchored = true;
       ++top.anchor_gen;
       stats.reanchored = true;
@@ -885,7 +883,6 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
     return V3{float(rot.at(0, c)), float(rot.at(1, c)), float(rot.at(2, c))};
   };
   const V3 right = column(0), up = column(1), back = column(2);
-  std::atomic<float> nearest{std::numeric_limits<float>::infinity()};
   // The rays: one per pixel, or with a stride one per stride x stride block,
   // on a grid aligned to the frame (sample (i, j) is pixel (gx0 + i s,
   // gy0 + j s)) and one sample past the region's last pixel on each axis, so
@@ -901,7 +898,6 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
   FlushDenormals ftz;
   impl_->pool->run(tiles_x * tiles_y, [&](int tile) {
     Tracer tracer(f);
-    float local_nearest = std::numeric_limits<float>::infinity();
     const int x0 = (tile % tiles_x) * kTile, y0 = (tile / tiles_x) * kTile;  // samples
     const int x1 = std::min(x0 + kTile, grid.w), y1 = std::min(y0 + kTile, grid.h);
     // 4x4 packets of coherent primary rays, then each ray's shading.
@@ -964,7 +960,6 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
           h.v = rh.hit.v[k];
           h.prim = rh.hit.primID[k];
           h.inst = rh.hit.instID[0][k];
-          local_nearest = std::min(local_nearest, h.t);
           surf[k] = tracer.surface(h, org, V3{rh.ray.dir_x[k], rh.ray.dir_y[k], rh.ray.dir_z[k]});
           if (!tracer.wantsShadowRay(surf[k])) continue;
           V3 o = tracer.shadowOrigin(surf[k]);
@@ -997,14 +992,15 @@ RtRenderStats RayTracer::render(const Camera& camera, int width, int height, con
           out[3] = 255;
         }
       }
-    for (float n = nearest.load();
-         local_nearest < n && !nearest.compare_exchange_weak(n, local_nearest);) {
-    }
   });
-  // Seen nothing: keep the last distance.
-  if (float n = nearest.load(); n < std::numeric_limits<float>::infinity()) top.nearest = n;
   if (st > 1) upsampleStrided(grid, samples.data(), region, rgba->data());
   return stats;
+}
+
+Vec3d anchorFor(Vec3d eye, double grid) {
+  if (!(grid > 0)) return eye;
+  auto snap = [grid](double v) { return std::nearbyint(v / grid) * grid; };
+  return {snap(eye.x), snap(eye.y), snap(eye.z)};
 }
 
 RayGrid rayStrideGrid(const Rect& region, int stride) {

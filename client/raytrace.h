@@ -48,6 +48,10 @@ struct RayOptions {
   // bilinearly (1: every pixel, exact). For moving frames in the
   // interactive mode; the error is measured in docs/benchmarks.md.
   int stride = 1;
+  // The top level's transforms are relative to anchorFor(eye, anchor_grid)
+  // and kept while that does not change (docs/raytrace.md): 0 makes them
+  // eye-relative and sets them all every time the eye moves.
+  double anchor_grid = 0;
 };
 
 inline constexpr int kMaxRayStride = 8;
@@ -99,11 +103,11 @@ struct RtRenderStats {
   double top_ms = 0;        // wall time of the top level's update
 };
 
-// How far (in nearest surface distances) the eye may move from the top
-// level's anchor before the anchor moves to the eye: a point's float error
-// in anchor space is then at most (1 + kAnchorReach) times its error in eye
-// space, relative to its distance from the eye (docs/raytrace.md).
-inline constexpr double kAnchorReach = 16;
+// The top level's anchor for an eye: the eye rounded to the nearest point
+// of a grid of spacing `grid` (0: the eye itself). A function of the eye
+// alone, so that every client of a run (whatever it traced before) uses the
+// same anchor for a frame and distributed frames equal one client's.
+Vec3d anchorFor(Vec3d eye, double grid);
 
 class RayTracer {
  public:

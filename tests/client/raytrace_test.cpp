@@ -353,26 +353,36 @@ TEST(RayTraceTopLevel, AKeptTopLevelRendersExactlyTheGivenObjects) {
   check(row.all, "all again");
 }
 
-TEST(RayTraceTopLevel, TheAnchorFollowsAnEyeThatMovesFarAndThenMatchesAFreshTracer) {
+TEST(RayTraceTopLevel, TheAnchorIsTheEyesGridPointAndMovesWhenThatDoes) {
+  EXPECT_EQ(anchorFor({1.2, -3.7, 100.1}, 0), (Vec3d{1.2, -3.7, 100.1}));
+  EXPECT_EQ(anchorFor({1.2, -3.7, 100.1}, 4), (Vec3d{0, -4, 100}));
+  EXPECT_EQ(anchorFor({1e9 + 3, 2.5, -2.5}, 2), (Vec3d{1e9 + 4, 2, -2}));  // ties to even
   RayTracer kept(2);
   Row row(kept, 8);
-  Camera near_cam = lookAt({4, -12, 6}, {6, 0, 0}, kW, kH);
+  RayOptions o;
+  o.anchor_grid = 8;
+  Camera first = lookAt({4.5, -12.5, 6}, {6, 0, 0}, kW, kH);  // grid point (8, -16, 8)
   std::vector<uint8_t> a;
-  kept.render(near_cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a);
-  // A small step (well under kAnchorReach nearest surfaces) keeps the anchor.
-  Camera step = lookAt({4.5, -12, 6}, {6, 0, 0}, kW, kH);
-  EXPECT_FALSE(kept.render(step, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a).reanchored);
-  // Far away: a new anchor at the eye, every transform set again, and the
-  // pixels a fresh tracer (anchored at the same eye) gives.
-  Camera far_cam = lookAt({4, -12 - 20 * kAnchorReach, 6}, {6, 0, 0}, kW, kH);
-  RtRenderStats s = kept.render(far_cam, kW, kH, {0, 0, kW, kH}, row.all, {}, {}, &a);
+  EXPECT_TRUE(kept.render(first, kW, kH, {0, 0, kW, kH}, row.all, {}, o, &a).reanchored);
+  // A step within the grid cell keeps the anchor: nothing to set again.
+  Camera step = lookAt({5, -13, 6.5}, {6, 0, 0}, kW, kH);
+  RtRenderStats s = kept.render(step, kW, kH, {0, 0, kW, kH}, row.all, {}, o, &a);
+  EXPECT_FALSE(s.reanchored);
+  EXPECT_EQ(s.updated, 0u);
+  // Into another cell: a new anchor, every transform set again.
+  Camera far_cam = lookAt({4, -12 - 200, 6}, {6, 0, 0}, kW, kH);
+  s = kept.render(far_cam, kW, kH, {0, 0, kW, kH}, row.all, {}, o, &a);
   EXPECT_TRUE(s.reanchored);
   EXPECT_EQ(s.updated, row.all.size());
-  RayTracer other(2);
-  Row row2(other, 8);
-  std::vector<uint8_t> b;
-  other.render(far_cam, kW, kH, {0, 0, kW, kH}, row2.all, {}, {}, &b);
-  EXPECT_EQ(a, b);
+  // Whatever came before, the pixels are a fresh tracer's for that eye.
+  for (const Camera* c : {&step, &far_cam}) {
+    std::vector<uint8_t> mine, fresh;
+    kept.render(*c, kW, kH, {0, 0, kW, kH}, row.all, {}, o, &mine);
+    RayTracer other(2);
+    Row row2(other, 8);
+    other.render(*c, kW, kH, {0, 0, kW, kH}, row2.all, {}, o, &fresh);
+    EXPECT_EQ(mine, fresh) << *c;
+  }
 }
 
 TEST(RayTraceTopLevel, AnObjectGivenTwiceIsAnError) {
