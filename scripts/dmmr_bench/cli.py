@@ -127,7 +127,7 @@ def main(argv=None):
         "reference_stride": runner.reference_stride(),  # the reference rendered (and compared) every k-th frame
         # how the dmmr-render runs were launched, for the report's measurement method
         "render_lp_num_threads": runner.render_env.get("LP_NUM_THREADS"),
-        "mpirun": " ".join(runner.render_mpi),
+        "launcher": " ".join(runner.render_mpi),  # with its --bind-to choice
         "cpus": os.cpu_count(),
         "load_average_start": [round(x, 2) for x in load_start],
         "load_average_end": [round(x, 2) for x in os.getloadavg()],

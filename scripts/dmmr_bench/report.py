@@ -199,7 +199,7 @@ def method_section(meta):
            "cost)" if lp == "0" else "")
         + f"; dmmr-reference{' and dmmr-osgviewer' if meta.get('osg_baseline', True) else ''} with "
           f"`LP_NUM_THREADS={meta.get('lp_num_threads') or 'unset (llvmpipe default)'}`.",
-        f"- **Launch and binding:** `{meta.get('mpirun', 'mpirun --bind-to none')} -np N+1 dmmr-render ...`: rank 0 is the "
+        f"- **Launch and binding:** `{meta.get('launcher', meta.get('mpirun', 'mpirun --bind-to none'))} -np N+1 dmmr-render ...`: rank 0 is the "
         f"server, ranks 1..N the clients, no process bound to a core. With up to {n_max} clients that is "
         f"{n_max + 1} processes (each client with two GL stage threads) on {meta.get('cpus', '?')} cores: "
         "**oversubscribed**, so measured wall times are not cluster times.",
