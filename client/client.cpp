@@ -709,16 +709,15 @@ struct RayStage {
   uint64_t stamp = 0;
   uint64_t list_version = 1;  // of `instances`, for RayTracer::render
   std::vector<uint32_t> required, all_objects;
-  // Shadow casters of the last frame seen (the whole frame's, so that every
-  // tile and division sees the same set).
-  uint32_t casters_frame = UINT32_MAX;
-  Camera casters_camera;
-  std::vector<uint32_t> casters;
-  // The whole frame's view, and the anchor grid, for the last frame seen.
-  uint32_t view_frame = UINT32_MAX, grid_frame = UINT32_MAX;
-  Camera view_camera, grid_camera;
-  std::vector<uint32_t> view;
-  double grid = 0;
+  // What the whole of the last frame seen gives every job of it (frameSets):
+  // its view, the anchor grid and, with shadows, the light's casters (the
+  // whole frame's, so that every tile and division sees the same set).
+  struct FrameSets {
+    uint32_t frame = UINT32_MAX;
+    Camera camera;
+    std::vector<uint32_t> view, casters;
+    double grid = 0;
+  } sets;
   static constexpr uint32_t kNone = UINT32_MAX;
 };
 
@@ -890,7 +889,7 @@ class RenderStage {
       // that the device level holds (marked with this job's stamp too).
       // Changed in place (a leaving object's place taken by the last), so
       // that the tracer finds most objects where they were.
-      const std::vector<uint32_t>& view = frameObjects(job);
+      const std::vector<uint32_t>& view = frameSets(job).view;
       for (uint32_t index : view) {
         if (rs.needed_stamp[index] == stamp) continue;
         const ObjectBounds& o = scene_.objects[index];
@@ -938,7 +937,7 @@ class RenderStage {
     auto tr = Clock::now();
     RayOptions opts = ray_opts_;
     opts.stride = job.ray_stride;  // the server's choice for this frame
-    opts.anchor_grid = anchorGrid(job);
+    opts.anchor_grid = frameSets(job).grid;
     RtRenderStats top =
         rs.tracer.render(job.camera, job.width, job.height, job.region, rs.instances,
                          rs.meshes.textures(), opts, &rgba_, {}, rs.list_version);
@@ -953,15 +952,6 @@ class RenderStage {
     addHostStats(st);
   }
 
-  // The top level's anchor grid for the frame (RayOptions::anchor_grid): the
-  // power of two at or below 16 times the distance from the eye to the
-  // nearest box of the frame's view (at least the near plane). Every client
-  // computes it from the frame alone, so all use one anchor and distributed
-  // frames equal one client's; the top level is set again only when the
-  // eye crosses into another cell or the grid changes; and since every
-  // visible surface is at least that distance d away, a point's float error
-  // relative to its distance from the eye is at most 1 + 0.87 * 16 = 15
-  // times what eye coordinates give (docs/raytrace.md).
   static double boxDistance(const Box3d& b, Vec3d p) {
     double d2 = 0;
     for (int i = 0; i < 3; ++i) {
@@ -970,32 +960,37 @@ class RenderStage {
     }
     return std::sqrt(d2);
   }
-  double anchorGrid(const FrameJob& job) {
-    RayStage& rs = *ray_;
-    const std::vector<uint32_t>& view = frameObjects(job);
-    if (rs.grid_frame != job.frame || !(rs.grid_camera == job.camera)) {
-      double nearest = std::numeric_limits<double>::infinity();
-      for (uint32_t index : view)
-        nearest = std::min(nearest, boxDistance(scene_.objects[index].box, job.camera.eye));
-      double d = std::max(job.camera.near, std::isfinite(nearest) ? nearest : 0.0);
-      rs.grid = std::exp2(std::floor(std::log2(64 * d)));
-      rs.grid_frame = job.frame;
-      rs.grid_camera = job.camera;
-    }
-    return rs.grid;
-  }
 
-  // The objects in the whole frame's view (frustum culled through the
-  // skeleton), for the frame's jobs: see trace().
-  const std::vector<uint32_t>& frameObjects(const FrameJob& job) {
-    RayStage& rs = *ray_;
-    if (rs.view_frame != job.frame || !(rs.view_camera == job.camera)) {
-      rs.view.clear();
-      cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(job.camera), &rs.view);
-      rs.view_frame = job.frame;
-      rs.view_camera = job.camera;
-    }
-    return rs.view;
+  // The frame's sets, computed once for all its jobs (RayStage::FrameSets):
+  // - the view: the objects in the whole frame's frustum, culled through the
+  //   skeleton (see trace());
+  // - the top level's anchor grid (RayOptions::anchor_grid): the power of
+  //   two at or below 64 times the distance d from the eye to the nearest
+  //   box of the view (at least the near plane). Every client computes it
+  //   from the frame alone, so all use one anchor and distributed frames
+  //   equal one client's; the top level is set again only when the eye
+  //   crosses into another cell or the grid changes; and since every visible
+  //   surface is at least d away, a point's float error relative to its
+  //   distance from the eye is at most 1 + 0.87 * 64 = 57 times what eye
+  //   coordinates give (docs/raytrace.md);
+  // - with shadows, the light's casters (shadowCasterPlanes).
+  const RayStage::FrameSets& frameSets(const FrameJob& job) {
+    RayStage::FrameSets& f = ray_->sets;
+    if (f.frame == job.frame && f.camera == job.camera) return f;
+    f.frame = job.frame;
+    f.camera = job.camera;
+    f.view.clear();
+    cullObjects(scene_.skeleton, scene_.objects, frustumPlanes(job.camera), &f.view);
+    double nearest = std::numeric_limits<double>::infinity();
+    for (uint32_t index : f.view)
+      nearest = std::min(nearest, boxDistance(scene_.objects[index].box, job.camera.eye));
+    double d = std::max(job.camera.near, std::isfinite(nearest) ? nearest : 0.0);
+    f.grid = std::exp2(std::floor(std::log2(64 * d)));
+    f.casters.clear();
+    if (ray_opts_.shadows)
+      cullObjects(scene_.skeleton, scene_.objects,
+                  shadowCasterPlanes(frustumPlanes(job.camera), ray_opts_.light), &f.casters);
+    return f;
   }
 
   // The objects job `v` needs traced (ascending): see trace().
@@ -1009,16 +1004,9 @@ class RenderStage {
       return rs.all_objects;
     }
     if (!ray_opts_.shadows) return v.visible;
-    const FrameJob& job = v.job;
-    if (rs.casters_frame != job.frame || !(rs.casters_camera == job.camera)) {
-      rs.casters.clear();
-      cullObjects(scene_.skeleton, scene_.objects,
-                  shadowCasterPlanes(frustumPlanes(job.camera), ray_opts_.light), &rs.casters);
-      rs.casters_frame = job.frame;
-      rs.casters_camera = job.camera;
-    }
+    const std::vector<uint32_t>& casters = frameSets(v.job).casters;
     rs.required.clear();
-    std::set_union(v.visible.begin(), v.visible.end(), rs.casters.begin(), rs.casters.end(),
+    std::set_union(v.visible.begin(), v.visible.end(), casters.begin(), casters.end(),
                    std::back_inserter(rs.required));
     return rs.required;
   }
