@@ -32,6 +32,15 @@ std::vector<uint8_t> renderFrame(RayTracer& rt, const Camera& cam,
   return rgba;
 }
 
+// Where the ray eye + t d meets the floor z = 0 (t, point p), if it does
+// within |x|, |y| <= half.
+bool floorPoint(Vec3d eye, Vec3d d, double half, double* t, Vec3d* p) {
+  if (d.z >= 0) return false;
+  *t = -eye.z / d.z;
+  *p = eye + d * *t;
+  return std::abs(p->x) <= half && std::abs(p->y) <= half;
+}
+
 }  // namespace
 
 // A grey floor (z = 0) and a box floating above it, lit from straight above:
@@ -60,11 +69,9 @@ TEST(RayTrace, ShadowFallsUnderTheBlockerAndNowhereElse) {
   int shadowed = 0, lit_px = 0, wrong = 0;
   for (int y = 0; y < kH; ++y)
     for (int x = 0; x < kW; ++x) {
-      Vec3d d = pixelRay(cam, kW, kH, x, y);
-      if (d.z >= 0) continue;
-      double t = -cam.eye.z / d.z;
-      Vec3d p = cam.eye + d * t;
-      if (std::abs(p.x) > 5.9 || std::abs(p.y) > 5.9) continue;
+      Vec3d d = pixelRay(cam, kW, kH, x, y), p;
+      double t = 0;
+      if (!floorPoint(cam.eye, d, 5.9, &t, &p)) continue;
       // Floor pixels only, well clear of the box's outline.
       if (rayBox(cam.eye, d, grow(blocker, 0.05)) < t) continue;
       double r = std::max(std::abs(p.x), std::abs(p.y));
@@ -109,11 +116,9 @@ TEST(RayTrace, MirrorFloorReflectsTheRedBox) {
   int mirrored = 0, plain = 0, wrong = 0, wrong_off = 0;
   for (int y = 0; y < kH; ++y)
     for (int x = 0; x < kW; ++x) {
-      Vec3d d = pixelRay(cam, kW, kH, x, y);
-      if (d.z >= 0) continue;
-      double t = -cam.eye.z / d.z;
-      Vec3d p = cam.eye + d * t;
-      if (std::abs(p.x) > 7.9 || std::abs(p.y) > 7.9) continue;
+      Vec3d d = pixelRay(cam, kW, kH, x, y), p;
+      double t = 0;
+      if (!floorPoint(cam.eye, d, 7.9, &t, &p)) continue;
       if (rayBox(cam.eye, d, grow(red, 0.05)) < t) continue;  // the box itself
       Vec3d r{d.x, d.y, -d.z};                                // reflected off z = 0
       bool hits = rayBox(p, r, grow(red, -0.05)) < 1e30;
