@@ -143,6 +143,9 @@ class Culler {
     // path (the one a possible depth tie takes) in every frame.
     const char* redraw = std::getenv("DMMR_FUSED_REDRAW");
     always_redraw_ = redraw && std::strcmp(redraw, "always") == 0;
+    // DMMR_PREDICT=hide-all: step 1's guess hides everything it may.
+    const char* predict = std::getenv("DMMR_PREDICT");
+    hide_all_ = predict && std::strcmp(predict, "hide-all") == 0;
   }
 
   // Split stages: occluders into depth, every candidate tested against it,
@@ -200,6 +203,7 @@ class Culler {
     startFrame(job);
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
+    if (opts_.predict) predictFirst(job, &first, &d);
     for (uint32_t o : first) d.triangles += draw(o);
     gl_.renderer.finish();  // its rasterisation is drawing time
     auto t0 = Clock::now();
@@ -239,7 +243,7 @@ class Culler {
         passed = testPyramid(passed, job, &d);
         std::sort(passed.begin(), passed.end());
       }
-      d.prepare_ms = msSince(t0) - d.retrieve_ms - late_ms;
+      d.prepare_ms += msSince(t0) - d.retrieve_ms - late_ms;
       return fusedDecision(std::move(d), plan, first, fresh, passed);
     }
     // A tie is possible: the new objects are tested again with a second
@@ -274,7 +278,7 @@ class Culler {
       }
       depthPassAndRetest(fresh);  // drawn before the pass replaces `fresh`
     }
-    d.prepare_ms = msSince(t0) - d.retrieve_ms;
+    d.prepare_ms += msSince(t0) - d.retrieve_ms;
     if (!fresh.empty()) {
       auto tr = Clock::now();
       std::vector<uint32_t> drawn = mergeSorted({first, fresh});
@@ -312,12 +316,39 @@ class Culler {
 
  private:
   static constexpr size_t kMaxRedrawRects = 16;
+  // The prediction works on texels of 4x4 pixels (0.5 ms a 512x512 frame,
+  // against 1.6 ms at 2x2 for the same triangles drawn on plant10m), and
+  // leaves out of step 1 an object whose box shows at no more than this
+  // share of them: the reprojected depth is a little off at silhouettes and
+  // where texels were filled, so "nowhere" would keep nearly every object
+  // (docs/benchmarks.md, "Step 1 predicted").
+  static constexpr int kPredictLevel = 2;
+  static constexpr double kPredictShown = 0.03;
   // New objects of up to this many triangles are always few enough to draw
   // on top.
   static constexpr uint64_t kFewNewTriangles = 4096;
   // New objects of more than this many times step 1's triangles make the
   // second pass draw the potential occluders among them first.
   static constexpr uint64_t kOccludersFirstRatio = 8;
+
+  // Leaves out of `first` (step 1's set) the objects that last frame's depth,
+  // as this frame's camera sees it, all but hides: last frame's visible
+  // objects that the camera's move put behind others. Those that do show
+  // pass the test after step 1 and are drawn as new ones, so this changes
+  // what is drawn first, never a pixel. Needs last frame's depth (the
+  // culler's latest readback); without it `first` is kept.
+  void predictFirst(const FrameJob& job, std::vector<uint32_t>* first, Decision* d) {
+    if (pyramid_.levels() <= kPredictLevel || pyramid_frame_ == UINT32_MAX ||
+        pyramid_frame_ + 1 != job.frame)
+      return;
+    auto t0 = Clock::now();
+    reprojectDepth(pyramid_, kPredictLevel, pyramid_camera_, job.camera, gl_.renderer.width(),
+                   gl_.renderer.height(), job.region, &predicted_);
+    std::erase_if(*first, [&](uint32_t o) {
+      return hide_all_ || shownFraction(predicted_, bound(o, job.camera)) <= kPredictShown;
+    });
+    d->prepare_ms += msSince(t0);
+  }
 
   // A fused frame's bookkeeping: it drew `first` and `fresh`; what
   // `passed` (ascending) is marked and, with the marked, the next frame's
@@ -435,6 +466,8 @@ class Culler {
     gl_.renderer.readDepth(job.region, &depth_);
     d->retrieve_ms += msSince(tr);
     pyramid_.build(depth_.data(), job.region);
+    pyramid_camera_ = job.camera;
+    pyramid_frame_ = job.frame;
     bounds_.resize(candidates.size());
     for (size_t i = 0; i < candidates.size(); ++i) bounds_[i] = bound(candidates[i], job.camera);
     std::vector<uint32_t> passed;
@@ -545,8 +578,12 @@ class Culler {
   std::vector<GLuint> queries_;
   std::vector<float> depth_;
   DepthPyramid pyramid_;
+  Camera pyramid_camera_;                // the camera pyramid_'s depth was drawn with
+  uint32_t pyramid_frame_ = UINT32_MAX;  // and its frame
+  PredictedDepth predicted_;             // last frame's depth seen from this frame's camera
   std::vector<ScreenBound> bounds_;
   bool always_redraw_ = false;
+  bool hide_all_ = false;
 };
 
 // What a client's stages share to decide how to work: the cost model (the

@@ -200,4 +200,90 @@ bool DepthPyramid::hides(const ScreenBound& b, int budget) const {
   return true;
 }
 
+void reprojectDepth(const DepthPyramid& from, int level, const Camera& from_cam,
+                    const Camera& to_cam, int width, int height, const Rect& to_region,
+                    PredictedDepth* out) {
+  DMMR_CHECK(level >= 1 && from.levels() > level && !to_region.empty());
+  const int side = 1 << level;
+  constexpr float kUnset = -1;  // below every depth: any point replaces it
+  out->region = to_region;
+  out->level = level;
+  out->width = (to_region.w + side - 1) >> level;
+  out->height = (to_region.h + side - 1) >> level;
+  const int w = out->width, h = out->height;
+  std::vector<float>& t = out->texels;
+  t.assign(size_t(w) * size_t(h), kUnset);
+  // A point at eye distance `dist` on the ray through normalised device
+  // coordinates (u, v) of the old camera is dist * (u / fx, v / f, -1) in its
+  // eye space; in the new eye space it is M times that, plus `shift`.
+  auto focal = [](const Camera& c) { return 1.0 / std::tan(c.fovy_deg * M_PI / 360.0); };
+  double f0 = focal(from_cam), fx0 = f0 / from_cam.aspect;
+  double f1 = focal(to_cam), fx1 = f1 / to_cam.aspect;
+  Mat4d to_view = viewRotation(to_cam);
+  Vec3d m[3];  // columns of M = to_view * from_cam's camera-to-world rotation
+  for (int i = 0; i < 3; ++i) {
+    Vec3d axis{i == 0 ? 1.0 : 0.0, i == 1 ? 1.0 : 0.0, i == 2 ? 1.0 : 0.0};
+    m[i] = to_view.transformVector(rotate(from_cam.rotation, axis));
+  }
+  Vec3d shift = to_view.transformVector(from_cam.eye - to_cam.eye);
+  const Rect& fr = from.region();
+  for (int ty = 0; ty < from.height(level); ++ty) {
+    // The block's centre, clipped to the region (partial blocks at the end).
+    double v = (fr.y + std::min(side * (ty + 0.5), fr.h - 0.5)) * 2.0 / height - 1;
+    Vec3d row = m[1] * (v / f0) - m[2];
+    for (int tx = 0; tx < from.width(level); ++tx) {
+      double u = (fr.x + std::min(side * (tx + 0.5), fr.w - 0.5)) * 2.0 / width - 1;
+      Vec3d e = m[0] * (u / fx0) + row;  // the direction in the new eye space
+      float depth = from.texel(level, tx, ty);
+      if (depth > 0) e = e * (from_cam.near / double(depth)) + shift;
+      double dist = -e.z;
+      // A direction needs only to be ahead; a point must be beyond the near plane.
+      if (!(depth > 0 ? dist > to_cam.near : dist > 0)) continue;
+      double px = (fx1 * e.x / dist + 1) * 0.5 * width - to_region.x;
+      double py = (f1 * e.y / dist + 1) * 0.5 * height - to_region.y;
+      if (!(px >= 0 && py >= 0 && px < to_region.w && py < to_region.h)) continue;
+      float& z = t[size_t(int(py) >> level) * size_t(w) + size_t(int(px) >> level)];
+      z = std::max(z, depth > 0 ? float(to_cam.near / dist) : 0.0f);
+    }
+  }
+  std::vector<float> prev;
+  for (int pass = 0; pass < 2; ++pass) {
+    prev = t;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        if (prev[size_t(y) * size_t(w) + size_t(x)] != kUnset) continue;
+        float far = INFINITY;
+        for (int ny = std::max(0, y - 1); ny <= std::min(h - 1, y + 1); ++ny)
+          for (int nx = std::max(0, x - 1); nx <= std::min(w - 1, x + 1); ++nx) {
+            float z = prev[size_t(ny) * size_t(w) + size_t(nx)];
+            if (z != kUnset) far = std::min(far, z);
+          }
+        if (far != INFINITY) t[size_t(y) * size_t(w) + size_t(x)] = far;
+      }
+  }
+  for (float& z : t)
+    if (z == kUnset) z = 0;
+}
+
+double shownFraction(const PredictedDepth& p, const ScreenBound& b, int max_samples) {
+  if (b.reaches_near) return 1;
+  const Rect& r = p.region;
+  // The rectangle within the region, in texels.
+  int x0 = std::max(b.x0, r.x) - r.x, x1 = std::min(b.x1, r.x1() - 1) - r.x;
+  int y0 = std::max(b.y0, r.y) - r.y, y1 = std::min(b.y1, r.y1() - 1) - r.y;
+  if (b.empty() || x1 < x0 || y1 < y0) return 0;
+  const int l = p.level, side = 1 << l;
+  x0 >>= l, x1 >>= l, y0 >>= l, y1 >>= l;
+  int grid = int(std::sqrt(double(std::max(1, max_samples))));
+  int sx = std::max(1, (x1 - x0 + grid) / grid), sy = std::max(1, (y1 - y0 + grid) / grid);
+  int samples = 0, shown = 0;
+  for (int y = y0; y <= y1; y += sy)
+    for (int x = x0; x <= x1; x += sx) {
+      ++samples;
+      int px = r.x + side * x, py = r.y + side * y;
+      if (!(double(p.texel(x, y)) > b.bound(px, py, px + side - 1, py + side - 1))) ++shown;
+    }
+  return double(shown) / samples;
+}
+
 }  // namespace dmmr

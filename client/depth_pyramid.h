@@ -102,4 +102,38 @@ class DepthPyramid {
   std::vector<std::pair<int, int>> dims_;
 };
 
+// Last frame's depth as this frame's camera would see it, at half
+// resolution: a guess at which objects show, made before anything is drawn
+// (the fused stage's first step). Nothing exact rests on it; a wrong guess
+// costs time only.
+struct PredictedDepth {
+  Rect region;    // of the frame, in pixels
+  int level = 1;  // a texel stands for 2^level x 2^level pixels of the region
+  int width = 0;  // texels: region.w / 2^level x region.h / 2^level, rounded up
+  int height = 0;
+  std::vector<float> texels;  // rows bottom first; 0: nothing (known far, or unknown)
+  float texel(int x, int y) const { return texels[size_t(y) * size_t(width) + size_t(x)]; }
+};
+
+// Each texel of `level` of `from` (the farthest depth of its block of pixels,
+// drawn under `from_cam`) stands for one point at its block's centre. The point is
+// moved to where `to_cam` sees it and written into the texel of `out` there
+// where nearer (larger) than what that texel holds. Cleared texels (0:
+// nothing drawn) move as directions, at depth 0. Points at or before the
+// near plane are dropped. Rounding and a camera coming nearer leave texels
+// unreached between points: twice over, an unreached texel with a reached
+// one among its 8 neighbours takes the farthest of them; texels still
+// unreached hold 0. `width` x `height` is the frame both cameras draw;
+// `out` has texels of the same size (level); 1 <= level < from.levels().
+void reprojectDepth(const DepthPyramid& from, int level, const Camera& from_cam,
+                    const Camera& to_cam, int width, int height, const Rect& to_region,
+                    PredictedDepth* out);
+
+// The share of the texels of `b`'s rectangle within p's region where
+// something inside `b` may show: the predicted depth is not strictly nearer
+// than `b`'s bound over the texel's pixels. Sampled on a grid of at most
+// about `max_samples` texels. 1 when `b` reaches the near plane, 0 when its
+// rectangle misses the region.
+double shownFraction(const PredictedDepth& p, const ScreenBound& b, int max_samples = 256);
+
 }  // namespace dmmr

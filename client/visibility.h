@@ -53,6 +53,11 @@ struct VisibilityOptions {
   // drawn into depth and queried again when there are at least this many
   // (0: always; a very large value turns the second pass off).
   uint32_t second_pass_min = 1;
+  // Fused stages: step 1 leaves out last frame's visible objects that last
+  // frame's depth, moved to this frame's camera, all but hides
+  // (reprojectDepth). A guess: those that show pass the test and are drawn
+  // as new ones. Never changes a pixel.
+  bool predict = true;
   // Hierarchical query rounds: runs of this many consecutive objects are
   // tested by their union box, then the runs that pass at the next size; the
   // last size must be 1. Each round waits once for the query results.

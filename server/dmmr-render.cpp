@@ -68,6 +68,12 @@ int main(int argc, char** argv) {
   app.add_option("--second-pass-min", c.visibility.second_pass_min,
                  "objects newly passing that trigger a second depth-and-query pass "
                  "(large: never)");
+  std::string predict = "on";
+  app.add_option("--predict", predict,
+                 "fused stages: on (last frame's visible objects that its depth, moved to the "
+                 "new camera, all but hides are not drawn first but tested) or off; never "
+                 "changes a pixel")
+      ->check(CLI::IsMember({"on", "off"}));
   std::string weights = "visible";
   app.add_option("--weights", weights,
                  "division weights: visible (triangles drawn lately), fitted (a cost model and "
@@ -203,6 +209,7 @@ int main(int argc, char** argv) {
                         : stages == "auto" ? dmmr::StageMode::Auto
                                            : dmmr::StageMode::Split;
   c.visibility.governor = costModel == "on";
+  c.visibility.predict = predict == "on";
   if (c.visibility.stages != dmmr::StageMode::Split &&
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)

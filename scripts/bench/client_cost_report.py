@@ -10,7 +10,7 @@ import statistics as st
 import sys
 
 out, reps, scenes = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
-CONFIGS = ["queries-split", "pyramid-split", "pyramid-split-nocost", "pyramid-fused", "pyramid-fused-nocost", "auto", "off"]
+CONFIGS = ["queries-split", "pyramid-split", "pyramid-split-nocost", "pyramid-fused", "pyramid-fused-nopredict", "pyramid-fused-nocost", "auto", "off"]
 STAGES = ["prepare_ms", "retrieve_ms", "render_ms", "readback_ms", "compress_ms"]
 
 
@@ -41,8 +41,9 @@ for s in scenes:
           f"{med(exact, 'floor_ms'):.1f} ms; exactly visible: {med(exact, 'exact_visible_objects'):.0f} "
           f"objects, {med(exact, 'exact_visible_triangles'):,.0f} triangles\n")
     print("| run | frame ms | vs reference | prepare | retrieve | render | readback | compress | "
-          "tested | visible | triangles drawn | drawn / exactly visible | worst differing pixels |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "render thread CPU | tested | visible | triangles drawn | drawn / exactly visible | "
+          "worst differing pixels |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     ev = sum(float(r["exact_visible_triangles"]) for r in exact)
     for c in CONFIGS:
         if not os.path.exists(f"{out}/{s}-{c}-r1.csv"):  # left out (DMMR_BENCH_CONFIGS)
@@ -51,7 +52,9 @@ for s in scenes:
         drawn = st.median(sum(float(x["c1_triangles"]) for x in rows(f"{s}-{c}-r{r}"))
                           for r in range(1, reps + 1))
         stages = " | ".join(f"{over_runs(s, c, k, 'c1_'):.1f}" for k in STAGES)
-        print(f"| {c} | {f:.1f} | {ref / f:.2f}x | {stages} | {over_runs(s, c, 'queried', 'c1_'):.0f} | "
+        cpu = over_runs(s, c, "render_cpu_ms", "c1_")
+        print(f"| {c} | {f:.1f} | {ref / f:.2f}x | {stages} | {cpu:.1f} | "
+              f"{over_runs(s, c, 'queried', 'c1_'):.0f} | "
               f"{over_runs(s, c, 'visible', 'c1_'):.0f} | {over_runs(s, c, 'triangles', 'c1_'):,.0f} | "
               f"{drawn / max(ev, 1):.2f} | {worst_diff(s, c)} |")
     print()

@@ -292,4 +292,131 @@ TEST(CoverRects, KeepsDistantRectanglesApart) {
             (std::vector<Rect>{Rect{0, 0, 3, 3}}));
 }
 
+// reprojectDepth and shownFraction: a guess only, but points must land
+// where the new camera sees them, at their depth, whatever the cameras'
+// offset from the origin.
+
+// The depth (near / distance) at which the ray through pixel (x, y)'s centre
+// meets the plane z = plane_z, 0 if it does not.
+float planeDepth(const Camera& c, int w, int h, int x, int y, double plane_z) {
+  double f = 1.0 / std::tan(c.fovy_deg * M_PI / 360.0), fx = f / c.aspect;
+  double u = (x + 0.5) * 2.0 / w - 1, v = (y + 0.5) * 2.0 / h - 1;
+  Vec3d dir = rotate(c.rotation, Vec3d{u / fx, v / f, -1});
+  double s = (plane_z - c.eye.z) / dir.z;  // eye distance: dir's eye-space z is -1
+  return s > c.near ? float(c.near / s) : 0.f;
+}
+
+TEST(ReprojectDepth, TheSameCameraKeepsEachBlocksFarthestDepth) {
+  std::mt19937 rng(11);
+  const int fw = 64, fh = 48;
+  const Rect region{3, 5, 41, 29};  // odd sizes: partial blocks at the ends
+  Vec3d eye{1e6, -2e6, 350};
+  Camera c{eye, lookAtRotation(eye, eye + Vec3d{3, 5, -10}, {0, 0, 1}), 45, double(fw) / fh, 0.1};
+  std::vector<float> d = randomDepth(rng, region.w, region.h);
+  DepthPyramid p;
+  p.build(d.data(), region);
+  for (int level : {1, 2}) {
+    PredictedDepth out;
+    reprojectDepth(p, level, c, c, fw, fh, region, &out);
+    ASSERT_EQ(out.width, p.width(level));
+    ASSERT_EQ(out.height, p.height(level));
+    for (int y = 0; y < out.height; ++y)
+      for (int x = 0; x < out.width; ++x) {
+        float want = p.texel(level, x, y);
+        ASSERT_NEAR(out.texel(x, y), want, 1e-5 * want)
+            << "level " << level << " " << x << "," << y;
+      }
+  }
+}
+
+TEST(ReprojectDepth, APlaneSeenFromAnotherCameraLandsAtItsDepth) {
+  const int fw = 96, fh = 80;
+  const Vec3d base{-3e6, 4e5, 1200};  // far from the origin
+  const double plane_z = base.z, dist = 10;
+  // The new camera looks straight down at the plane, so that every pixel of
+  // it sees the plane at `dist`; the old one stood aside and higher, tilted.
+  Camera to{base + Vec3d{0, 0, dist}, Quatd{}, 45, double(fw) / fh, 0.1};
+  Vec3d from_eye = base + Vec3d{1.5, -0.7, dist + 2};
+  Camera from{from_eye, lookAtRotation(from_eye, base, {0, 1, 0}), 45, double(fw) / fh, 0.1};
+  const Rect full{0, 0, fw, fh};
+  std::vector<float> d(size_t(fw) * fh);
+  for (int y = 0; y < fh; ++y)
+    for (int x = 0; x < fw; ++x) d[size_t(y) * fw + x] = planeDepth(from, fw, fh, x, y, plane_z);
+  DepthPyramid p;
+  p.build(d.data(), full);
+  const float want = float(to.near / dist);
+  PredictedDepth out;
+  reprojectDepth(p, 1, from, to, fw, fh, full, &out);
+  int centre = 0, reached = 0;
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      float z = out.texel(x, y);
+      // A block's farthest depth stands at its centre: off by the plane's
+      // slope over a pixel, under 1% here.
+      if (z != 0) {
+        ASSERT_NEAR(z, want, 1e-2 * want) << x << "," << y;
+      }
+      if (std::abs(2 * x - fw / 2) < fw / 4 && std::abs(2 * y - fh / 2) < fh / 4) {
+        ++centre;
+        reached += z != 0;
+      }
+    }
+  EXPECT_EQ(reached, centre) << "the old camera saw the middle: all of it is reached";
+  // Moved past the plane, every point is behind the new camera: nothing.
+  Camera below = to;
+  below.eye.z = plane_z - 1;
+  reprojectDepth(p, 1, from, below, fw, fh, full, &out);
+  EXPECT_TRUE(std::all_of(out.texels.begin(), out.texels.end(), [](float z) { return z == 0; }));
+}
+
+TEST(ReprojectDepth, WhatWasNeverSeenIsLeftFarAndBackgroundMovesWithTheRotation) {
+  const int fw = 64, fh = 64;
+  const Rect full{0, 0, fw, fh};
+  Camera from{{5, 5, 5}, Quatd{}, 45, 1, 0.1};
+  // Turned 10 degrees about the vertical (of a 45-degree view): a strip at
+  // one side was never seen.
+  Camera to = from;
+  to.rotation = Quatd{0, std::sin(M_PI / 36), 0, std::cos(M_PI / 36)};
+  std::vector<float> wall(size_t(fw) * fh, 0.5f), sky(size_t(fw) * fh, 0.f);
+  DepthPyramid p;
+  p.build(wall.data(), full);
+  PredictedDepth out;
+  reprojectDepth(p, 1, from, to, fw, fh, full, &out);
+  size_t unseen = size_t(std::count(out.texels.begin(), out.texels.end(), 0.f));
+  EXPECT_GT(unseen, out.texels.size() / 8);
+  EXPECT_LT(unseen, out.texels.size() / 3);
+  // Background (nothing drawn) is a direction: turning moves it, moving
+  // does not, and it stays 0 (nothing hides behind it).
+  p.build(sky.data(), full);
+  to.eye = from.eye + Vec3d{100, 0, 0};
+  reprojectDepth(p, 1, from, to, fw, fh, full, &out);
+  EXPECT_TRUE(std::all_of(out.texels.begin(), out.texels.end(), [](float z) { return z == 0; }));
+}
+
+TEST(ShownFraction, CountsTheTexelsWhereTheBoundIsNotStrictlyBehind) {
+  PredictedDepth p;
+  p.region = Rect{10, 20, 64, 32};
+  p.level = 1;
+  p.width = 32;
+  p.height = 16;
+  // Left half near (0.8), right half nothing drawn.
+  p.texels.assign(size_t(p.width) * p.height, 0.f);
+  for (int y = 0; y < p.height; ++y)
+    for (int x = 0; x < p.width / 2; ++x) p.texels[size_t(y) * p.width + x] = 0.8f;
+  auto box = [](int x0, int y0, int x1, int y1, double nearest) {
+    ScreenBound b;
+    b.x0 = x0, b.y0 = y0, b.x1 = x1, b.y1 = y1, b.nearest = nearest;
+    return b;
+  };
+  EXPECT_EQ(shownFraction(p, box(10, 20, 41, 51, 0.5)), 0.0) << "behind the near half";
+  EXPECT_EQ(shownFraction(p, box(10, 20, 41, 51, double(0.8f))), 1.0) << "a tie is not behind";
+  EXPECT_EQ(shownFraction(p, box(42, 20, 73, 51, 0.1)), 1.0) << "nothing drawn there";
+  EXPECT_NEAR(shownFraction(p, box(10, 20, 73, 51, 0.5)), 0.5, 0.07) << "half and half";
+  EXPECT_EQ(shownFraction(p, box(0, 0, 9, 19, 0.5)), 0.0) << "outside the region";
+  EXPECT_EQ(shownFraction(p, box(-5, 20, 20, 30, 0.5)), 0.0) << "clipped to the region";
+  ScreenBound near_plane;
+  near_plane.reaches_near = true;
+  EXPECT_EQ(shownFraction(p, near_plane), 1.0);
+}
+
 }  // namespace
