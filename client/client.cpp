@@ -141,8 +141,12 @@ class Culler {
       : scene_(scene), opts_(opts), gl_(gl), marked_until_(scene.objects.size(), 0) {
     // Test hook: DMMR_FUSED_REDRAW=always takes the fused stage's redraw
     // path (the one a possible depth tie takes) in every frame.
+    // DMMR_FUSED_REDRAW=equal takes the EQUAL colour pass whenever there are
+    // new objects, and =equal-fails also, then redraws as if it found a tie.
     const char* redraw = std::getenv("DMMR_FUSED_REDRAW");
     always_redraw_ = redraw && std::strcmp(redraw, "always") == 0;
+    if (redraw && std::strcmp(redraw, "equal") == 0) redraw_hook_ = RedrawHook::EqualAlways;
+    if (redraw && std::strcmp(redraw, "equal-fails") == 0) redraw_hook_ = RedrawHook::EqualFails;
     // DMMR_PREDICT=hide-all: step 1's guess hides everything it may.
     const char* predict = std::getenv("DMMR_PREDICT");
     hide_all_ = predict && std::strcmp(predict, "hide-all") == 0;
@@ -234,7 +238,8 @@ class Culler {
     uint64_t fresh_tris = regionTriangles(scene_, fresh),
              first_tris = regionTriangles(scene_, first);
     bool few = fresh_tris * 4 <= first_tris + kFewNewTriangles;
-    if (!fresh.empty() && few && !always_redraw_ && !tiesWithDrawn(fresh)) {
+    if (!fresh.empty() && few && !always_redraw_ && redraw_hook_ == RedrawHook::None &&
+        !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
@@ -263,7 +268,13 @@ class Culler {
       std::sort(passed.begin(), passed.end());
       fresh = newOnes();
     };
+    // Many new objects: after their depth pass, try drawing them in colour
+    // where their depth is the final one (colorWhereEqual) before redrawing
+    // their footprints. Few with a tie: that would fail; redraw at once.
+    bool try_equal = !always_redraw_ && (!few || redraw_hook_ != RedrawHook::None);
+    bool depth_passed = false;
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
+      if (try_equal) step1_depth_ = depth_;
       // When step 1 drew next to nothing (last frame's visible set left the
       // region: the camera turned or passed a wall), nearly the whole region
       // is new, and drawing all of it into depth is a brute-force pass. The
@@ -277,8 +288,19 @@ class Culler {
         if (!occluders.empty() && occluders.size() < fresh.size()) depthPassAndRetest(occluders);
       }
       depthPassAndRetest(fresh);  // drawn before the pass replaces `fresh`
+      depth_passed = true;
     }
     d.prepare_ms += msSince(t0) - d.retrieve_ms;
+    if (!fresh.empty() && try_equal && depth_passed) {
+      auto tr = Clock::now();
+      uint64_t triangles = 0;
+      bool done = colorWhereEqual(fresh, draw, &triangles);
+      d.redraw_ms = msSince(tr);
+      if (done) {
+        d.triangles += triangles;
+        return fusedDecision(std::move(d), plan, first, fresh, passed);
+      }
+    }
     if (!fresh.empty()) {
       auto tr = Clock::now();
       std::vector<uint32_t> drawn = mergeSorted({first, fresh});
@@ -297,7 +319,7 @@ class Culler {
             d.triangles += t;
         }
       }
-      d.redraw_ms = msSince(tr);
+      d.redraw_ms += msSince(tr);
     }
     return fusedDecision(std::move(d), plan, first, fresh, passed);
   }
@@ -403,6 +425,35 @@ class Culler {
   static void sortUnique(std::vector<uint32_t>* v) {
     std::sort(v->begin(), v->end());
     v->erase(std::unique(v->begin(), v->end()), v->end());
+  }
+
+  // The new objects' colour without redrawing what step 1 drew: `fresh`
+  // (ascending, every one drawn into depth since step 1's readback, which
+  // step1_depth_ holds; depth_ holds the readback after them) drawn in colour
+  // with depth test EQUAL and no depth writes, counting the fragments that
+  // pass. At every pixel whose depth the new objects changed, one of their
+  // fragments has that depth (the first drawn, the one the reference shows);
+  // elsewhere the depth is step 1's. So the count equals the number of
+  // changed pixels exactly when no other fragment ties: with none of step
+  // 1's depth and none of another new fragment's. Then every pixel holds
+  // what the reference shows, and true is returned. Otherwise (a tie: the
+  // colour there may be the wrong object's) false, and the caller redraws the
+  // new objects' footprints, which covers every pixel this pass wrote. The
+  // count assumes drawDepth and draw make the same depth, as the tie query
+  // does (draw.h). `*triangles`: the new objects' triangles drawn.
+  bool colorWhereEqual(const std::vector<uint32_t>& fresh, const DrawFn& draw,
+                       uint64_t* triangles) {
+    uint64_t changed = 0;
+    for (size_t i = 0; i < depth_.size(); ++i) changed += depth_[i] != step1_depth_[i];
+    // Its own query object: a query's target is fixed by its first use, and
+    // queries_[0] counts GL_ANY_SAMPLES_PASSED for the tie check.
+    if (count_query_ == 0) gl_.context->gl().GenQueries(1, &count_query_);
+    gl_.renderer.beginEqualColorPass(count_query_);
+    for (uint32_t o : fresh) *triangles += draw(o);
+    gl_.renderer.endEqualColorPass();
+    GLuint fragments = 0;
+    gl_.context->gl().GetQueryObjectuiv(count_query_, GL_QUERY_RESULT, &fragments);
+    return fragments == changed && redraw_hook_ != RedrawHook::EqualFails;
   }
 
   // Whether any fragment of `objects` has exactly the depth already in the
@@ -583,6 +634,9 @@ class Culler {
   PredictedDepth predicted_;             // last frame's depth seen from this frame's camera
   std::vector<ScreenBound> bounds_;
   bool always_redraw_ = false;
+  enum class RedrawHook { None, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
+  std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
+  GLuint count_query_ = 0;          // colorWhereEqual's GL_SAMPLES_PASSED
   bool hide_all_ = false;
 };
 

@@ -564,6 +564,20 @@ void Renderer::endDepthEqualQuery() {
   gl_.UseProgram(program_);
 }
 
+void Renderer::beginEqualColorPass(GLuint query) {
+  gl_.UseProgram(program_);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl_.DepthMask(GL_FALSE);
+  gl_.DepthFunc(GL_EQUAL);
+  gl_.BeginQuery(GL_SAMPLES_PASSED, query);
+}
+
+void Renderer::endEqualColorPass() {
+  gl_.EndQuery(GL_SAMPLES_PASSED);
+  gl_.DepthMask(GL_TRUE);
+  gl_.DepthFunc(GL_GREATER);
+}
+
 void Renderer::maskColor(bool masked) {
   GLboolean on = masked ? GL_FALSE : GL_TRUE;
   gl_.ColorMask(on, on, on, on);

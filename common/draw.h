@@ -124,6 +124,13 @@ class Renderer {
   // at their pixel; nothing is written. The frame's state comes back after.
   void beginDepthEqualQuery(GLuint query);
   void endDepthEqualQuery();
+  // The draws that follow (draw()) write colour, and no depth, only where
+  // their depth equals the depth already at the pixel, and count the
+  // fragments that pass into `query` (GL_SAMPLES_PASSED): the fused stage's
+  // colour pass over a depth the same objects drew with drawDepth. The
+  // frame's state comes back after.
+  void beginEqualColorPass(GLuint query);
+  void endEqualColorPass();
   // Masks colour writes (drawDepth into a colour frame) or unmasks them.
   void maskColor(bool masked);
   void finish();

@@ -370,6 +370,75 @@ TEST_F(OcclusionQuery, BatchedQueriesAnswerAsSingleOnes) {
   gl.check("batched queries");
 }
 
+// The fused stages' colour pass over the new objects' own depth
+// (beginEqualColorPass): where they changed the depth one fragment each
+// passes, so the count equals the changed pixels, and the frame equals
+// drawing everything in order; a tie, with what was drawn before or among
+// the new objects, adds fragments, so the count tells it.
+TEST_F(OcclusionQuery, EqualColorPassCountsOneFragmentPerPixelItChangedUnlessTied) {
+  Renderer& r = *renderer_;
+  const GlApi& gl = ctx_->gl();
+  GLuint q = 0;
+  gl.GenQueries(1, &q);
+  const Rect all{0, 0, kSize, kSize};
+  auto mesh = [&](const GeometryData& g) {
+    meshes_.push_back(r.upload(g));
+    return meshes_.size() - 1;
+  };
+  // Step 1 draws `first` in colour; the new ones go into depth, then into
+  // colour where EQUAL. Returns the fragments counted minus the pixels whose
+  // depth the new ones changed, and the frame.
+  auto fused = [&](const std::vector<GeometryData>& first, const std::vector<GeometryData>& fresh,
+                   std::vector<uint8_t>* rgba) {
+    r.beginFrame(camera_, all);
+    for (const GeometryData& g : first)
+      r.draw(meshes_[mesh(g)], Mat4d::identity(), positionBox(g), {});
+    std::vector<float> before, after;
+    r.readDepth(all, &before);
+    std::vector<size_t> ids;
+    for (const GeometryData& g : fresh) ids.push_back(mesh(g));
+    r.maskColor(true);
+    for (size_t i = 0; i < fresh.size(); ++i)
+      r.drawDepth(meshes_[ids[i]], Mat4d::identity(), positionBox(fresh[i]), false);
+    r.maskColor(false);
+    r.readDepth(all, &after);
+    int64_t changed = 0;
+    for (size_t i = 0; i < after.size(); ++i) changed += after[i] != before[i];
+    r.beginEqualColorPass(q);
+    for (size_t i = 0; i < fresh.size(); ++i)
+      r.draw(meshes_[ids[i]], Mat4d::identity(), positionBox(fresh[i]), {});
+    r.endEqualColorPass();
+    GLuint fragments = 0;
+    gl.GetQueryObjectuiv(q, GL_QUERY_RESULT, &fragments);
+    r.readPixels(all, rgba);
+    EXPECT_GT(changed + int64_t(fragments), 0) << "the case draws nothing";
+    return int64_t(fragments) - changed;
+  };
+  auto inOrder = [&](const std::vector<GeometryData>& objects) {
+    r.beginFrame(camera_, all);
+    for (const GeometryData& g : objects)
+      r.draw(meshes_[mesh(g)], Mat4d::identity(), positionBox(g), {});
+    std::vector<uint8_t> rgba;
+    r.readPixels(all, &rgba);
+    return rgba;
+  };
+  GeometryData wall = quad(-4, 4, -4, 4, -10, 0.8f);
+  // Nearer than the wall over part of it, and beside it; a sliver seen
+  // obliquely too.
+  GeometryData front = quad(-2, 6, -1, 2, -9, 0.3f);
+  GeometryData slanted =
+      join(quad(-3, -1, -3, 3, -9.5, 0.5f), triangle({-3, -3, -8}, {3, -2.9, -12}, {2, -3.1, -9}));
+  std::vector<uint8_t> got;
+  EXPECT_EQ(fused({wall}, {front, slanted}, &got), 0);
+  EXPECT_TRUE(got == inOrder({wall, front, slanted})) << "the frame differs from drawing in order";
+  // A tie with step 1's depth (the wall again, another colour), and one
+  // between two new objects: more fragments than changed pixels.
+  EXPECT_GT(fused({wall}, {quad(-4, 4, -4, 4, -10, 0.1f)}, &got), 0);
+  EXPECT_GT(fused({wall}, {front, quad(-2, 6, -1, 2, -9, 0.6f)}, &got), 0);
+  gl.DeleteQueries(1, &q);
+  gl.check("equal colour pass");
+}
+
 // The fused stages' tie check: a fragment at exactly the depth already in
 // the buffer counts, one nearer or farther does not.
 TEST_F(OcclusionQuery, DepthEqualQueryFindsExactTiesOnly) {

