@@ -10,6 +10,9 @@
 # usage: scripts/bench/client_cost.sh   (writes out/bench/client-cost/, prints Markdown)
 # DMMR_BENCH_SCENES and DMMR_BENCH_CONFIGS (space-separated names and labels)
 # run a subset, e.g. DMMR_BENCH_SCENES=plant10m DMMR_BENCH_CONFIGS="pyramid-fused".
+# DMMR_BENCH_BASE_BIN (a build's bin directory) adds the configuration
+# "base": that build's dmmr-render with its defaults, taking turns with the
+# others (an A/B of two builds in one run).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 bin=${DMMR_BIN:-build/bin}
@@ -48,6 +51,7 @@ if [ -n "${DMMR_BENCH_CONFIGS:-}" ]; then
   done
   configs=("${chosen[@]}")
 fi
+[ -n "${DMMR_BENCH_BASE_BIN:-}" ] && configs+=("base|")
 view=(--width "$size" --height "$size" --no-progress)
 for s in $scenes; do
   p=walkthroughs/$s.path
@@ -58,8 +62,10 @@ for s in $scenes; do
       "${view[@]}" --stats "$out/$s-ref-r$r.csv"
     for c in "${configs[@]}"; do
       label=${c%%|*}
+      render=$bin/dmmr-render
+      [ "$label" = base ] && render=$DMMR_BENCH_BASE_BIN/dmmr-render
       # shellcheck disable=SC2086
-      "${mpi[@]}" $bin/dmmr-render --scene "out/bench/$s.scene" --walkthrough "$p" \
+      "${mpi[@]}" "$render" --scene "out/bench/$s.scene" --walkthrough "$p" \
         --out "$out/$s-$label" "${view[@]}" --stats "$out/$s-$label-r$r.csv" ${c#*|}
       $bin/dmmr-compare "$out/$s-ref" "$out/$s-$label" --csv "$out/$s-$label-r$r.cmp.csv" \
         --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
