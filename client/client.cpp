@@ -287,7 +287,21 @@ class Culler {
                               scene_.occluders.end(), std::back_inserter(occluders));
         if (!occluders.empty() && occluders.size() < fresh.size()) depthPassAndRetest(occluders);
       }
-      depthPassAndRetest(fresh);  // drawn before the pass replaces `fresh`
+      // Nearest first, in batches of a third of what is left (by
+      // triangles): each batch goes into depth and everything that passed is
+      // tested again, so that what the nearer new objects hide is not drawn
+      // (monuments25: 15% less client CPU than one pass, docs/benchmarks.md).
+      // Every new object still passing is in depth at the end.
+      std::vector<uint32_t> in_depth, pending;
+      for (;;) {
+        pending.clear();
+        std::set_difference(fresh.begin(), fresh.end(), in_depth.begin(), in_depth.end(),
+                            std::back_inserter(pending));
+        if (pending.empty()) break;
+        std::vector<uint32_t> batch = nearestBatch(pending, job);
+        depthPassAndRetest(batch);
+        in_depth = mergeSorted({in_depth, batch});
+      }
       depth_passed = true;
     }
     d.prepare_ms += msSince(t0) - d.retrieve_ms;
@@ -425,6 +439,30 @@ class Culler {
   static void sortUnique(std::vector<uint32_t>* v) {
     std::sort(v->begin(), v->end());
     v->erase(std::unique(v->begin(), v->end()), v->end());
+  }
+
+  // The nearest of `objects` (ascending) by their boxes' nearest depth, at
+  // least a third of their triangles (all of them when that leaves few),
+  // ascending.
+  std::vector<uint32_t> nearestBatch(const std::vector<uint32_t>& objects, const FrameJob& job) {
+    uint64_t total = regionTriangles(scene_, objects);
+    uint64_t want = std::max<uint64_t>(total / 3, kFewNewTriangles);
+    if (total <= want + kFewNewTriangles) return objects;
+    std::vector<std::pair<double, uint32_t>> by_depth;
+    for (uint32_t o : objects) {
+      ScreenBound b = bound(o, job.camera);
+      by_depth.push_back({b.reaches_near ? INFINITY : b.nearest, o});
+    }
+    std::sort(by_depth.begin(), by_depth.end(), std::greater<>());
+    std::vector<uint32_t> batch;
+    uint64_t tris = 0;
+    for (const auto& [depth, o] : by_depth) {
+      if (tris >= want) break;
+      batch.push_back(o);
+      tris += scene_.objects[o].weight;
+    }
+    std::sort(batch.begin(), batch.end());
+    return batch;
   }
 
   // The new objects' colour without redrawing what step 1 drew: `fresh`
