@@ -470,8 +470,8 @@ class Culler {
   // step1_depth_ holds; depth_ holds the readback after them) drawn in colour
   // with depth test EQUAL and no depth writes, counting the fragments that
   // pass. At every pixel whose depth the new objects changed, one of their
-  // fragments has that depth (the first drawn, the one the reference shows);
-  // elsewhere the depth is step 1's. So the count equals the number of
+  // fragments has that depth (the nearest there: unique, it is the one the
+  // reference shows); elsewhere the depth is step 1's. So the count equals the number of
   // changed pixels exactly when no other fragment ties: with none of step
   // 1's depth and none of another new fragment's. Then every pixel holds
   // what the reference shows, and true is returned. Otherwise (a tie: the
