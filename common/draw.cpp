@@ -10,7 +10,15 @@ namespace dmmr {
 
 namespace {
 
+// gl_Position is invariant here and in kBoxVertexShader, whose data flow
+// for it is the same (u_proj * (u_mv * position)): GLSL then guarantees the
+// position-only program (drawDepth, id frames) and the shading program put
+// every vertex, so every fragment's depth, in the same place bit for bit,
+// which the fused stage's tie query and EQUAL colour pass count on. Without
+// it a compiler may contract the two programs' products differently (an
+// FMA in one, not the other).
 const char* kVertexShader = R"(#version 450 core
+invariant gl_Position;
 layout(location = 0) in vec3 a_pos;
 layout(location = 1) in vec3 a_nrm;
 layout(location = 2) in vec4 a_col;
@@ -88,10 +96,14 @@ void main() {
 )";
 
 const char* kBoxVertexShader = R"(#version 450 core
+invariant gl_Position;
 layout(location = 0) in vec3 a_pos;
 uniform mat4 u_mv;
 uniform mat4 u_proj;
-void main() { gl_Position = u_proj * (u_mv * vec4(a_pos, 1.0)); }
+void main() {
+  vec4 e = u_mv * vec4(a_pos, 1.0);
+  gl_Position = u_proj * e;
+}
 )";
 
 const char* kIdFragmentShader = R"(
@@ -476,8 +488,9 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const B
 void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
                          bool lod) {
   // The position-only program: its vertex transform is the same expression as
-  // the shading program's, so depth matches the render pass, while the
-  // fragment work (lighting, derivatives) is skipped.
+  // the shading program's, with gl_Position invariant in both, so depth
+  // matches the render pass, while the fragment work (lighting, derivatives)
+  // is skipped.
   gl_.UseProgram(id_program_);
   float proj[16], mvf[16];
   toFloat(projectionMatrix(camera_), proj);
