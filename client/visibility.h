@@ -56,8 +56,11 @@ struct VisibilityOptions {
   // Fused stages: step 1 leaves out last frame's visible objects that last
   // frame's depth, moved to this frame's camera, all but hides
   // (reprojectDepth). A guess: those that show pass the test and are drawn
-  // as new ones. Never changes a pixel.
-  bool predict = true;
+  // as new ones. Never changes a pixel. Off by default: it draws fewer
+  // triangles (plant10m 1.49x the exactly visible set against 1.58x) but
+  // costs client CPU where the guess sends objects to the second pass
+  // (plants4 at 1024x768: 25% more; docs/benchmarks.md).
+  bool predict = false;
   // Hierarchical query rounds: runs of this many consecutive objects are
   // tested by their union box, then the runs that pass at the next size; the
   // last size must be 1. Each round waits once for the query results.

@@ -68,11 +68,11 @@ int main(int argc, char** argv) {
   app.add_option("--second-pass-min", c.visibility.second_pass_min,
                  "objects newly passing that trigger a second depth-and-query pass "
                  "(large: never)");
-  std::string predict = "on";
+  std::string predict = "off";
   app.add_option("--predict", predict,
                  "fused stages: on (last frame's visible objects that its depth, moved to the "
-                 "new camera, all but hides are not drawn first but tested) or off; never "
-                 "changes a pixel")
+                 "new camera, all but hides are not drawn first but tested) or off (the "
+                 "default); never changes a pixel")
       ->check(CLI::IsMember({"on", "off"}));
   std::string weights = "visible";
   app.add_option("--weights", weights,

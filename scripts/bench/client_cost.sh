@@ -40,7 +40,7 @@ configs=(  # label|dmmr-render options; pyramid-split is the default
   "pyramid-split-nocost|--visibility pyramid --stages split --cost-model off"
   "pyramid-fused|--visibility pyramid --stages fused"
   "pyramid-fused-nocost|--visibility pyramid --stages fused --cost-model off"
-  "pyramid-fused-nopredict|--visibility pyramid --stages fused --predict off"
+  "pyramid-fused-predict|--visibility pyramid --stages fused --predict on"
   "auto|--stages auto"
   "off|--visibility off"
 )

@@ -222,10 +222,9 @@ TEST(VisibilityStageFused, TheRedrawPathIsExactToo) {
 }
 
 // Fused stages leave out of step 1 the last frame's visible objects that
-// last frame's depth, moved to the new camera, hides (--predict, default
-// on). The guess must only change what is drawn first: frames stay exact,
-// and on this fly-through it leaves objects out, so that 1 client draws
-// fewer triangles. A test hook guesses that everything is hidden (step 1 draws
+// last frame's depth, moved to the new camera, hides (--predict on). The guess must only change
+// what is drawn first: frames stay exact, and on this fly-through it leaves objects out, so that 1
+// client draws fewer triangles. A test hook guesses that everything is hidden (step 1 draws
 // nothing; every object is tested and drawn as a new one): exact too.
 TEST(VisibilityStageFused, PredictedStepOneDrawsLessAndStaysExact) {
   PlantScene& s = plant();
@@ -248,11 +247,12 @@ TEST(VisibilityStageFused, PredictedStepOneDrawsLessAndStaysExact) {
     }
     std::string out = s.dir / ("predict-all" + std::to_string(clients));
     int status = 0;
-    std::string log = test::runCapture(
-        "timeout 120 " + test::mpirun(clients + 1) + " -x DMMR_PREDICT=hide-all " +
-            test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " + s.scene +
-            " --walkthrough " + s.fly + " --out " + out + " --stages fused --cost-model off",
-        &status);
+    std::string log =
+        test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " -x DMMR_PREDICT=hide-all " +
+                             test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
+                             s.scene + " --walkthrough " + s.fly + " --out " + out +
+                             " --stages fused --cost-model off --predict on",
+                         &status);
     ASSERT_EQ(status, 0) << log;
     EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0) << clients << " clients";
   }
