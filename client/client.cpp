@@ -15,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <numeric>
+#include <string>
 #include <thread>
 
 #include "cpu_time.h"
@@ -144,9 +145,10 @@ class Culler {
     // DMMR_FUSED_REDRAW=equal takes the EQUAL colour pass whenever there are
     // new objects, and =equal-fails also, then redraws as if it found a tie.
     const char* redraw = std::getenv("DMMR_FUSED_REDRAW");
-    always_redraw_ = redraw && std::strcmp(redraw, "always") == 0;
-    if (redraw && std::strcmp(redraw, "equal") == 0) redraw_hook_ = RedrawHook::EqualAlways;
-    if (redraw && std::strcmp(redraw, "equal-fails") == 0) redraw_hook_ = RedrawHook::EqualFails;
+    std::string hook = redraw ? redraw : "";
+    if (hook == "always") redraw_hook_ = RedrawHook::Always;
+    if (hook == "equal") redraw_hook_ = RedrawHook::EqualAlways;
+    if (hook == "equal-fails") redraw_hook_ = RedrawHook::EqualFails;
     // DMMR_PREDICT=hide-all: step 1's guess hides everything it may.
     const char* predict = std::getenv("DMMR_PREDICT");
     hide_all_ = predict && std::strcmp(predict, "hide-all") == 0;
@@ -238,8 +240,7 @@ class Culler {
     uint64_t fresh_tris = regionTriangles(scene_, fresh),
              first_tris = regionTriangles(scene_, first);
     bool few = fresh_tris * 4 <= first_tris + kFewNewTriangles;
-    if (!fresh.empty() && few && !always_redraw_ && redraw_hook_ == RedrawHook::None &&
-        !tiesWithDrawn(fresh)) {
+    if (!fresh.empty() && few && redraw_hook_ == RedrawHook::None && !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
@@ -271,7 +272,8 @@ class Culler {
     // Many new objects: after their depth pass, try drawing them in colour
     // where their depth is the final one (colorWhereEqual) before redrawing
     // their footprints. Few with a tie: that would fail; redraw at once.
-    bool try_equal = !always_redraw_ && (!few || redraw_hook_ != RedrawHook::None);
+    bool try_equal =
+        redraw_hook_ != RedrawHook::Always && (!few || redraw_hook_ != RedrawHook::None);
     bool depth_passed = false;
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       if (try_equal) step1_depth_ = depth_;
@@ -671,8 +673,7 @@ class Culler {
   uint32_t pyramid_frame_ = UINT32_MAX;  // and its frame
   PredictedDepth predicted_;             // last frame's depth seen from this frame's camera
   std::vector<ScreenBound> bounds_;
-  bool always_redraw_ = false;
-  enum class RedrawHook { None, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
+  enum class RedrawHook { None, Always, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
   std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
   GLuint count_query_ = 0;          // colorWhereEqual's GL_SAMPLES_PASSED
   bool hide_all_ = false;

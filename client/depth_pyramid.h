@@ -102,8 +102,8 @@ class DepthPyramid {
   std::vector<std::pair<int, int>> dims_;
 };
 
-// Last frame's depth as this frame's camera would see it, at half
-// resolution: a guess at which objects show, made before anything is drawn
+// Last frame's depth as this frame's camera would see it, on texels of
+// 2^level x 2^level pixels: a guess at which objects show, made before anything is drawn
 // (the fused stage's first step). Nothing exact rests on it; a wrong guess
 // costs time only.
 struct PredictedDepth {

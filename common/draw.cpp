@@ -562,33 +562,34 @@ void Renderer::beginRedraw(const Rect& rect, Rgb bg) {
   gl_.UseProgram(program_);
 }
 
+void Renderer::beginEqualPass(bool color, GLenum target, GLuint query) {
+  GLboolean c = color ? GL_TRUE : GL_FALSE;
+  if (color) gl_.UseProgram(program_);  // draw() shades with it
+  gl_.ColorMask(c, c, c, c);
+  gl_.DepthMask(GL_FALSE);
+  gl_.DepthFunc(GL_EQUAL);
+  gl_.BeginQuery(target, query);
+}
+
+void Renderer::endEqualPass(GLenum target) {
+  gl_.EndQuery(target);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl_.DepthMask(GL_TRUE);
+  gl_.DepthFunc(GL_GREATER);
+  gl_.UseProgram(program_);
+}
+
 void Renderer::beginDepthEqualQuery(GLuint query) {
-  gl_.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-  gl_.DepthMask(GL_FALSE);
-  gl_.DepthFunc(GL_EQUAL);
-  gl_.BeginQuery(GL_ANY_SAMPLES_PASSED, query);
+  beginEqualPass(false, GL_ANY_SAMPLES_PASSED, query);
 }
-
 void Renderer::endDepthEqualQuery() {
-  gl_.EndQuery(GL_ANY_SAMPLES_PASSED);
-  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-  gl_.DepthMask(GL_TRUE);
-  gl_.DepthFunc(GL_GREATER);
-  gl_.UseProgram(program_);
+  endEqualPass(GL_ANY_SAMPLES_PASSED);
 }
-
 void Renderer::beginEqualColorPass(GLuint query) {
-  gl_.UseProgram(program_);
-  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-  gl_.DepthMask(GL_FALSE);
-  gl_.DepthFunc(GL_EQUAL);
-  gl_.BeginQuery(GL_SAMPLES_PASSED, query);
+  beginEqualPass(true, GL_SAMPLES_PASSED, query);
 }
-
 void Renderer::endEqualColorPass() {
-  gl_.EndQuery(GL_SAMPLES_PASSED);
-  gl_.DepthMask(GL_TRUE);
-  gl_.DepthFunc(GL_GREATER);
+  endEqualPass(GL_SAMPLES_PASSED);
 }
 
 void Renderer::maskColor(bool masked) {

@@ -150,6 +150,10 @@ class Renderer {
   Mat4d view_rotation_;
   GLint u_bound_ = -1, u_id_bound_ = -1;
   Mat4d cameraRelative(const Mat4d& object_to_world) const;
+  // Depth test EQUAL, no depth writes, colour written or masked, counting
+  // into `query` (`target`); the end restores the frame's state.
+  void beginEqualPass(bool color, GLenum target, GLuint query);
+  void endEqualPass(GLenum target);
   // Uploads `box`'s entry-depth planes for the current camera (an invalid
   // box: no bound) to the current program's u_bound.
   void setDepthBound(GLint location, const Box3d& box);
