@@ -277,33 +277,41 @@ class Culler {
     bool depth_passed = false;
     if (!fresh.empty() && fresh.size() >= opts_.second_pass_min) {
       if (try_equal) step1_depth_ = depth_;
+      // Nearest first, in batches: each batch of `among` (ascending) that
+      // still passes and is not in depth yet goes into depth, and
+      // everything that passed is tested again, so that what the nearer new
+      // objects hide is not drawn (monuments25: 15% less client CPU than
+      // one pass, docs/benchmarks.md). A batch is the nearest third of what
+      // is left, by triangles, or `cap` triangles if fewer (0: no cap).
+      std::vector<uint32_t> in_depth;
+      auto nearestFirst = [&](const std::vector<uint32_t>& among, uint64_t cap) {
+        for (;;) {
+          std::vector<uint32_t> left, pending;
+          std::set_intersection(fresh.begin(), fresh.end(), among.begin(), among.end(),
+                                std::back_inserter(left));
+          std::set_difference(left.begin(), left.end(), in_depth.begin(), in_depth.end(),
+                              std::back_inserter(pending));
+          if (pending.empty()) return;
+          std::vector<uint32_t> batch = nearestBatch(pending, job, cap);
+          depthPassAndRetest(batch);
+          in_depth = mergeSorted({in_depth, batch});
+        }
+      };
       // When step 1 drew next to nothing (last frame's visible set left the
       // region: the camera turned or passed a wall), nearly the whole region
       // is new, and drawing all of it into depth is a brute-force pass. The
       // preprocessor's potential occluders among the new objects (big and
-      // cheap) go first, and only what still passes after them is drawn.
-      // They are new objects too, so the argument above holds for them.
+      // cheap) go first, an eighth of their triangles at a time, and only
+      // what still passes after them is drawn. They are new objects too, so
+      // the argument above holds for them.
       if (fresh_tris > kOccludersFirstRatio * first_tris + kFewNewTriangles) {
         std::vector<uint32_t> occluders;
         std::set_intersection(fresh.begin(), fresh.end(), scene_.occluders.begin(),
                               scene_.occluders.end(), std::back_inserter(occluders));
-        if (!occluders.empty() && occluders.size() < fresh.size()) depthPassAndRetest(occluders);
+        if (!occluders.empty() && occluders.size() < fresh.size())
+          nearestFirst(occluders, regionTriangles(scene_, occluders) / 8);
       }
-      // Nearest first, in batches of a third of what is left (by
-      // triangles): each batch goes into depth and everything that passed is
-      // tested again, so that what the nearer new objects hide is not drawn
-      // (monuments25: 15% less client CPU than one pass, docs/benchmarks.md).
-      // Every new object still passing is in depth at the end.
-      std::vector<uint32_t> in_depth, pending;
-      for (;;) {
-        pending.clear();
-        std::set_difference(fresh.begin(), fresh.end(), in_depth.begin(), in_depth.end(),
-                            std::back_inserter(pending));
-        if (pending.empty()) break;
-        std::vector<uint32_t> batch = nearestBatch(pending, job);
-        depthPassAndRetest(batch);
-        in_depth = mergeSorted({in_depth, batch});
-      }
+      nearestFirst(fresh, 0);
       depth_passed = true;
     }
     d.prepare_ms += msSince(t0) - d.retrieve_ms;
@@ -412,6 +420,8 @@ class Culler {
     std::vector<uint32_t> arrived;
     std::set_difference(job.hints.begin(), job.hints.end(), last_region_.begin(),
                         last_region_.end(), std::back_inserter(arrived));
+    if (guessCollapsed(regionTriangles(scene_, previous_), regionTriangles(scene_, before_)))
+      arrived = mergeSorted({arrived, before_});
     if (arrived.empty())
       return planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
     return planVisibility(job.objects, mergeSorted({previous_, arrived}), potential, marked_until_,
@@ -427,6 +437,7 @@ class Culler {
     if (job.frame != frame_) {
       for (uint32_t o : passed_now_) marked_until_[o] = frame_ + 1 + opts_.keep_frames;
       sortUnique(&visible_now_);  // the jobs' lists, each ascending, one after another
+      before_.swap(previous_);
       previous_.swap(visible_now_);
       sortUnique(&region_now_);
       last_region_.swap(region_now_);
@@ -444,11 +455,15 @@ class Culler {
   }
 
   // The nearest of `objects` (ascending) by their boxes' nearest depth, at
-  // least a third of their triangles (all of them when that leaves few),
-  // ascending.
-  std::vector<uint32_t> nearestBatch(const std::vector<uint32_t>& objects, const FrameJob& job) {
+  // least a third of their triangles or `cap`, whichever is fewer (cap 0:
+  // none), and at least kFewNewTriangles (all of them when that leaves
+  // few), ascending.
+  std::vector<uint32_t> nearestBatch(const std::vector<uint32_t>& objects, const FrameJob& job,
+                                     uint64_t cap) {
     uint64_t total = regionTriangles(scene_, objects);
-    uint64_t want = std::max<uint64_t>(total / 3, kFewNewTriangles);
+    uint64_t third = total / 3;
+    if (cap > 0) third = std::min(third, cap);
+    uint64_t want = std::max<uint64_t>(third, kFewNewTriangles);
     if (total <= want + kFewNewTriangles) return objects;
     std::vector<std::pair<double, uint32_t>> by_depth;
     for (uint32_t o : objects) {
@@ -662,6 +677,7 @@ class Culler {
   VisibilityOptions opts_;
   GlStage& gl_;
   std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
+  std::vector<uint32_t> before_;                    // and the frame before's
   std::vector<uint32_t> last_region_, region_now_;  // the jobs' objects, last frame and this
   std::vector<uint32_t> marked_until_;              // per object: first frame to test again
   uint32_t frame_ = UINT32_MAX;                     // the frame of the jobs being decided

@@ -28,6 +28,10 @@ VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
   return p;
 }
 
+bool guessCollapsed(uint64_t last_triangles, uint64_t before_triangles) {
+  return last_triangles < before_triangles / 4;
+}
+
 std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& lists) {
   // The lists are sorted already: merge them pairwise (callers pass one to
   // three) in linear time instead of sorting their concatenation.

@@ -82,6 +82,16 @@ VisibilityPlan planVisibility(const std::vector<uint32_t>& region,
                               const std::vector<uint32_t>& potential,
                               const std::vector<uint32_t>& marked_until, uint32_t frame);
 
+// Whether a frame's starting guess (its occluders; the fused stage's step
+// 1) should take the visible list of the frame before last as well as last
+// frame's: true when last frame's visible triangles are under a quarter of
+// the frame before's. Then the camera stood right behind something near
+// that hid most of the scene for a frame, and as it moves on, what that hid
+// shows again: last frame's list alone would leave the new frame's depth
+// nearly empty, and everything would pass its tests (monuments25's slowest
+// frames). Any guess is exact: it changes what is drawn first, not a pixel.
+bool guessCollapsed(uint64_t last_triangles, uint64_t before_triangles);
+
 // Ascending union, without duplicates, of lists that are each ascending
 // (a list may repeat a value); linear in their total size.
 std::vector<uint32_t> mergeSorted(const std::vector<std::vector<uint32_t>>& lists);

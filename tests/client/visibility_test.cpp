@@ -177,6 +177,19 @@ Box3d cube(Vec3d center, double half) {
 // are about the near plane's geometry.
 constexpr int kTall = 1 << 24;
 
+// Last frame's list is a poor start when it holds under a quarter of the
+// triangles of the frame before's: the camera stood behind something near.
+TEST(GuessCollapsed, UnderAQuarterOfTheFrameBeforesTriangles) {
+  EXPECT_TRUE(guessCollapsed(0, 100));
+  EXPECT_TRUE(guessCollapsed(24, 100));
+  EXPECT_FALSE(guessCollapsed(25, 100));
+  EXPECT_FALSE(guessCollapsed(100, 100));
+  EXPECT_FALSE(guessCollapsed(500, 100));  // the set grew
+  EXPECT_FALSE(guessCollapsed(0, 0));      // nothing before either (first frames)
+  EXPECT_FALSE(guessCollapsed(0, 3));      // too little before to tell
+  EXPECT_TRUE(guessCollapsed(1, uint64_t(1) << 40));
+}
+
 TEST(BoxReachesNearPlane, EyeInsideTheBox) {
   Camera c = unitCamera(0.1);
   EXPECT_TRUE(boxReachesNearPlane(cube({0, 0, 0}, 1), c, kTall));
