@@ -311,7 +311,7 @@ class Culler {
         if (!occluders.empty() && occluders.size() < fresh.size())
           nearestFirst(occluders, regionTriangles(scene_, occluders) / 8);
       }
-      nearestFirst(fresh, 0);
+      nearestFirst(fresh, 0);  // every new object still passing is now in depth
       depth_passed = true;
     }
     d.prepare_ms += msSince(t0) - d.retrieve_ms;
