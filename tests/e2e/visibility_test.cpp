@@ -326,35 +326,70 @@ TEST(VisibilityStageApproximate, ErrorStaysWithinTheBenchmarksBound) {
   }
 }
 
+// Hand-made scenes of OSG shapes for the hard cases: each shape its own
+// geode (so its own object), preprocessed, walked along a path given as
+// control points, with the reference frames of that path.
+namespace {
+
+struct ShapeScene {
+  TempDir dir;
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  std::string scene, path, reference;
+  void add(osg::Shape* shape, const osg::Vec4& colour) {
+    auto* geode = new osg::Geode;
+    auto* sd = new osg::ShapeDrawable(shape);
+    sd->setColor(colour);
+    geode->addDrawable(sd);
+    root->addChild(geode);
+  }
+  // Writes and preprocesses the shapes, writes `w` and renders its
+  // reference frames; `name` names the files.
+  void finish(const std::string& name, const Walkthrough& w) {
+    std::string model = dir / (name + ".osgb");
+    ASSERT_TRUE(osgDB::writeNodeFile(*root, model));
+    PreprocessOptions o;
+    o.inputs = {model};
+    o.out = scene = dir / (name + ".scene");
+    o.progress = false;
+    preprocess(o);
+    writeWalkthrough(path = dir / (name + ".path"), w);
+    reference = dir / (name + "-reference");
+    int status = 0;
+    std::string log =
+        test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
+                             scene + " --walkthrough " + path + " --out " + reference,
+                         &status);
+    ASSERT_EQ(status, 0) << log;
+  }
+  // mpirun dmmr-render with `clients` clients into `out`; asserts it ran.
+  void render(int clients, const std::string& out, const std::string& options) {
+    int status = 0;
+    std::string log =
+        test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
+                             test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
+                             scene + " --walkthrough " + path + " --out " + out + " " + options,
+                         &status);
+    ASSERT_EQ(status, 0) << log;
+  }
+};
+
+}  // namespace
+
 // A closed room (one box, seen from inside through its back faces) with
 // objects inside and a row of pillars outside; the camera walks in through
 // a wall, stands inside objects' bounding boxes and crosses them with the
 // near plane. Conservative culling must still draw everything that shows,
 // with 1 and 3 clients, and the division must still tile the frame.
 TEST(VisibilityHardCases, CameraInsideObjectsAndThroughAWallIsExact) {
-  TempDir dir;
-  osg::ref_ptr<osg::Group> root = new osg::Group;
-  auto add = [&](osg::Shape* shape, const osg::Vec4& colour) {
-    auto* geode = new osg::Geode;
-    auto* sd = new osg::ShapeDrawable(shape);
-    sd->setColor(colour);
-    geode->addDrawable(sd);
-    root->addChild(geode);
-  };
-  add(new osg::Box({0, 0, 2}, 12, 12, 4), {0.7f, 0.7f, 0.6f, 1});  // the room
-  for (int i = 0; i < 9; ++i)                                      // inside
-    add(new osg::Sphere({-4.f + i, float((i * 7) % 5) - 2.f, 1.f}, 0.4f),
-        {0.2f + 0.08f * i, 0.3f, 0.9f - 0.08f * i, 1});
-  add(new osg::Box({0.5f, 0, 1}, 0.6f, 9, 2), {0.3f, 0.8f, 0.3f, 1});  // a screen the path crosses
-  for (int i = 0; i < 6; ++i)                                          // outside
-    add(new osg::Cylinder({-10.f, -6.f + 2.5f * i, 2}, 0.5f, 4), {0.9f, 0.4f, 0.2f, 1});
-  std::string model = dir / "room.osgb";
-  ASSERT_TRUE(osgDB::writeNodeFile(*root, model));
-  PreprocessOptions o;
-  o.inputs = {model};
-  o.out = dir / "room.scene";
-  o.progress = false;
-  preprocess(o);
+  ShapeScene s;
+  s.add(new osg::Box({0, 0, 2}, 12, 12, 4), {0.7f, 0.7f, 0.6f, 1});  // the room
+  for (int i = 0; i < 9; ++i)                                        // inside
+    s.add(new osg::Sphere({-4.f + i, float((i * 7) % 5) - 2.f, 1.f}, 0.4f),
+          {0.2f + 0.08f * i, 0.3f, 0.9f - 0.08f * i, 1});
+  s.add(new osg::Box({0.5f, 0, 1}, 0.6f, 9, 2),
+        {0.3f, 0.8f, 0.3f, 1});  // a screen the path crosses
+  for (int i = 0; i < 6; ++i)    // outside
+    s.add(new osg::Cylinder({-10.f, -6.f + 2.5f * i, 2}, 0.5f, 4), {0.9f, 0.4f, 0.2f, 1});
   // From outside the room (-X), through its wall, through the screen, on to
   // the far side, looking along +X and a little to the side.
   Walkthrough w;
@@ -362,24 +397,12 @@ TEST(VisibilityHardCases, CameraInsideObjectsAndThroughAWallIsExact) {
     Vec3d eye{-9.0 + 1.6 * f, 0.3 * std::sin(f), 1.2};
     w.points.push_back({0.1 * f, eye, lookAtRotation(eye, eye + Vec3d{1, 0.25, -0.05}, {0, 0, 1})});
   }
-  std::string path = dir / "room.path", ref = dir / "room-reference";
-  writeWalkthrough(path, w);
-  int status = 0;
-  std::string log =
-      test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
-                           o.out + " --walkthrough " + path + " --out " + ref,
-                       &status);
-  ASSERT_EQ(status, 0) << log;
+  ASSERT_NO_FATAL_FAILURE(s.finish("room", w));
   for (const char* mode : kModes)
     for (int clients : {1, 3}) {
-      std::string out = dir / ("room" + std::to_string(clients) + test::slug(mode));
-      log =
-          test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
-                               test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " +
-                               o.out + " --walkthrough " + path + " --out " + out + " " + mode,
-                           &status);
-      ASSERT_EQ(status, 0) << log;
-      EXPECT_EQ(differingPixels(ref, out, 10), 0) << clients << " clients, " << mode;
+      std::string out = s.dir / ("room" + std::to_string(clients) + test::slug(mode));
+      ASSERT_NO_FATAL_FAILURE(s.render(clients, out, mode));
+      EXPECT_EQ(differingPixels(s.reference, out, 10), 0) << clients << " clients, " << mode;
     }
 }
 
@@ -390,27 +413,12 @@ TEST(VisibilityHardCases, CameraInsideObjectsAndThroughAWallIsExact) {
 // its step 1 / occluders are not empty. Exact with every mode, 1 and 3
 // clients.
 TEST(VisibilityHardCases, PassingRightBehindAWallStartsFromTheFrameBefore) {
-  TempDir dir;
-  osg::ref_ptr<osg::Group> root = new osg::Group;
-  auto add = [&](osg::Shape* shape, const osg::Vec4& colour) {
-    auto* geode = new osg::Geode;
-    auto* sd = new osg::ShapeDrawable(shape);
-    sd->setColor(colour);
-    geode->addDrawable(sd);
-    root->addChild(geode);
-  };
-  add(new osg::Box({2, 0, 1}, 0.2f, 1, 6), {0.7f, 0.7f, 0.6f, 1});  // the wall, x 1.9 to 2.1
-  for (int i = 0; i < 5; ++i)                                       // what it hides
+  ShapeScene s;
+  s.add(new osg::Box({2, 0, 1}, 0.2f, 1, 6), {0.7f, 0.7f, 0.6f, 1});  // the wall, x 1.9 to 2.1
+  for (int i = 0; i < 5; ++i)                                         // what it hides
     for (int j = 0; j < 5; ++j)
-      add(new osg::Sphere({8.f + 1.5f * float(j), -4.f + 2.f * float(i), 1.f}, 0.6f),
-          {0.2f + 0.15f * float(i), 0.3f, 0.9f - 0.15f * float(j), 1});
-  std::string model = dir / "wall.osgb";
-  ASSERT_TRUE(osgDB::writeNodeFile(*root, model));
-  PreprocessOptions o;
-  o.inputs = {model};
-  o.out = dir / "wall.scene";
-  o.progress = false;
-  preprocess(o);
+      s.add(new osg::Sphere({8.f + 1.5f * float(j), -4.f + 2.f * float(i), 1.f}, 0.6f),
+            {0.2f + 0.15f * float(i), 0.3f, 0.9f - 0.15f * float(j), 1});
   // Along -Y to +Y, 0.4 in front of the wall, looking along +X: frame 2
   // sees the wall alone (it spans +-51 degrees there, the view +-30).
   Walkthrough w;
@@ -419,24 +427,13 @@ TEST(VisibilityHardCases, PassingRightBehindAWallStartsFromTheFrameBefore) {
     Vec3d eye{1.5, -2.0 + f, 1.0};
     w.points.push_back({0.1 * f, eye, lookAtRotation(eye, eye + Vec3d{1, 0, 0}, {0, 0, 1})});
   }
-  std::string path = dir / "wall.path", ref = dir / "wall-reference";
-  writeWalkthrough(path, w);
-  int status = 0;
-  std::string log =
-      test::runCapture(test::tool("dmmr-reference") + " --no-progress" + kSize + " --scene " +
-                           o.out + " --walkthrough " + path + " --out " + ref,
-                       &status);
-  ASSERT_EQ(status, 0) << log;
+  ASSERT_NO_FATAL_FAILURE(s.finish("wall", w));
   for (const char* mode : kModes)
     for (int clients : {1, 3}) {
-      std::string out = dir / ("wall" + std::to_string(clients) + test::slug(mode));
-      log = test::runCapture("timeout 120 " + test::mpirun(clients + 1) + " " +
-                                 test::tool("dmmr-render") + " --no-progress" + kSize +
-                                 " --scene " + o.out + " --walkthrough " + path + " --out " + out +
-                                 " --cost-model off --stats " + out + ".csv " + mode,
-                             &status);
-      ASSERT_EQ(status, 0) << log;
-      EXPECT_EQ(differingPixels(ref, out, kFrames), 0) << clients << " clients, " << mode;
+      std::string out = s.dir / ("wall" + std::to_string(clients) + test::slug(mode));
+      ASSERT_NO_FATAL_FAILURE(
+          s.render(clients, out, "--cost-model off --stats " + out + ".csv " + mode));
+      EXPECT_EQ(differingPixels(s.reference, out, kFrames), 0) << clients << " clients, " << mode;
       if (clients != 1) continue;
       std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
       ASSERT_EQ(rows.size(), size_t(kFrames));
