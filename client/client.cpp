@@ -102,11 +102,14 @@ void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheSta
 // One GL context with the shared drawing code and its GPU cache level.
 struct GlStage {
   GlStage(const Scene& scene, HostCache& host, const ContextOptions& ctx, const ViewOptions& view,
-          const CacheOptions& cache)
+          const CacheOptions& cache, int64_t flush_triangles)
       : context(createContext(ctx)),
         renderer(context->gl(), view.width, view.height),
         backend(renderer),
-        meshes(scene, host, backend, cache.gpu_budget, cache.eviction) {}
+        meshes(scene, host, backend, cache.gpu_budget, cache.eviction) {
+    renderer.setFlushEvery(flush_triangles < 0 ? defaultFlushTriangles(context->gl())
+                                               : uint64_t(flush_triangles));
+  }
   std::unique_ptr<GlContext> context;
   Renderer renderer;
   RendererBackend backend;
@@ -773,7 +776,8 @@ class VisibilityStage {
     // Fused stages cull on the render stage's context: this one only passes
     // jobs on.
     if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
-      gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache);
+      gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache,
+                                      opts.flush_triangles);
       culler_ = std::make_unique<Culler>(scene, opts_, *gl_);
       if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
     }
@@ -882,7 +886,8 @@ class RenderStage {
     if (opts.raytrace) {
       ray_ = std::make_unique<RayStage>(scene, host, opts);
     } else
-      gl_ = std::make_unique<GlStage>(scene, host, opts.render_context, opts.view, opts.cache);
+      gl_ = std::make_unique<GlStage>(scene, host, opts.render_context, opts.view, opts.cache,
+                                      opts.flush_triangles);
     if (!opts.raytrace && opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, *gl_);

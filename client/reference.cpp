@@ -78,6 +78,9 @@ void runReference(const ReferenceOptions& opts) {
 
   auto ctx = createContext(opts.context);
   Renderer renderer(ctx->gl(), opts.view.width, opts.view.height);
+  const uint64_t flush_default = defaultFlushTriangles(ctx->gl()),
+                 flush = opts.flush_triangles < 0 ? flush_default : uint64_t(opts.flush_triangles);
+  renderer.setFlushEvery(flush);
 
   // With unlimited budgets every geometry is uploaded once, on first use;
   // instances share it.
@@ -117,6 +120,7 @@ void runReference(const ReferenceOptions& opts) {
       // set alone (what a perfect culler would leave), read back; the
       // pixels equal the frame's. Geometry is resident by now.
       auto tf = Clock::now();
+      renderer.setFlushEvery(flush_default);
       renderer.beginFrame(cam, full);
       for (uint32_t i : ev.list)
         if (const GpuMesh* mesh = meshes.acquire(scene.objects[i].geometry))
@@ -124,6 +128,7 @@ void runReference(const ReferenceOptions& opts) {
       std::vector<uint8_t> floor;
       renderer.readPixels(full, &floor);
       double floor_ms = msSince(tf);
+      renderer.setFlushEvery(flush);
       DMMR_CHECK(floor == pixels);
       std::snprintf(line, sizeof line, ",%llu,%llu,%.3f",
                     static_cast<unsigned long long>(ev.objects),

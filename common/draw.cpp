@@ -1,6 +1,7 @@
 #include "draw.h"
 
 #include <cmath>
+#include <cstring>
 #include <initializer_list>
 #include <string>
 
@@ -502,10 +503,13 @@ void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, cons
   if (lod && mesh.lod_count > 0) {
     gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
                      reinterpret_cast<const void*>(uintptr_t(mesh.lod_first) * 4));
+    submitted(mesh.lod_count);
   } else {
-    for (const SubMesh& s : mesh.submeshes)
+    for (const SubMesh& s : mesh.submeshes) {
       gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
                        reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+      submitted(s.index_count);
+    }
   }
   gl_.BindVertexArray(0);
 }
@@ -533,6 +537,7 @@ void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box
     }
     gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
                      reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
+    submitted(s.index_count);
   }
   gl_.BindVertexArray(0);
 }
@@ -596,6 +601,21 @@ void Renderer::maskColor(bool masked) {
   GLboolean on = masked ? GL_FALSE : GL_TRUE;
   gl_.ColorMask(on, on, on, on);
   if (!masked) gl_.UseProgram(program_);
+}
+
+uint64_t defaultFlushTriangles(const GlApi& gl) {
+  const char* name = reinterpret_cast<const char*>(gl.GetString(GL_RENDERER));
+  if (!name) return 0;
+  return std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe") ? kFlushTrianglesCpu : 0;
+}
+
+void Renderer::submitted(uint64_t indices) {
+  unflushed_ += indices / 3;
+  if (flush_every_ && unflushed_ >= flush_every_) {
+    gl_.Flush();
+    unflushed_ = 0;
+    ++flushes_;
+  }
 }
 
 void Renderer::finish() {

@@ -55,6 +55,13 @@ struct Rgb {
   float r = 0.2f, g = 0.22f, b = 0.26f;
 };
 
+// The flush interval setFlushEvery should get for this context's driver by
+// default: kFlushTrianglesCpu on a CPU rasteriser (llvmpipe, softpipe),
+// whose binning and rasterisation then overlap; 0 elsewhere (a GPU driver
+// batches its own submissions).
+inline constexpr uint64_t kFlushTrianglesCpu = 4096;
+uint64_t defaultFlushTriangles(const GlApi& gl);
+
 class Renderer {
  public:
   // Needs a current GL 4.5 context; creates the frame's FBO and the program.
@@ -134,6 +141,16 @@ class Renderer {
   // Masks colour writes (drawDepth into a colour frame) or unmasks them.
   void maskColor(bool masked);
   void finish();
+  // Flushes after every `triangles` submitted by draw and drawDepth (0:
+  // never; the caller's finish or readback flushes). llvmpipe transforms and
+  // bins triangles on the calling thread and rasterises them on its own
+  // threads only once they are flushed, so without this the two alternate;
+  // flushed every few thousand triangles, one batch is rasterised while the
+  // next is binned (docs/benchmarks.md, "Flushing while drawing"). GL runs
+  // commands in order either way, so no pixel changes.
+  void setFlushEvery(uint64_t triangles) { flush_every_ = triangles; }
+  uint64_t flushEvery() const { return flush_every_; }
+  uint64_t flushes() const { return flushes_; }  // setFlushEvery's, since construction
 
  private:
   const GlApi& gl_;
@@ -149,6 +166,9 @@ class Renderer {
   Camera camera_;
   Mat4d view_rotation_;
   GLint u_bound_ = -1, u_id_bound_ = -1;
+  uint64_t unflushed_ = 0, flush_every_ = 0, flushes_ = 0;
+  // Counts a draw call's triangles and flushes when flush_every_ are due.
+  void submitted(uint64_t indices);
   Mat4d cameraRelative(const Mat4d& object_to_world) const;
   // Depth test EQUAL, no depth writes, colour written or masked, counting
   // into `query` (`target`); the end restores the frame's state.

@@ -439,6 +439,32 @@ TEST_F(OcclusionQuery, EqualColorPassCountsOneFragmentPerPixelItChangedUnlessTie
   gl.check("equal colour pass");
 }
 
+// Flushing while drawing (Renderer::setFlushEvery) lets llvmpipe rasterise
+// one batch while the next is binned; GL keeps the order, so depth ties
+// still resolve to the first drawn. Coplanar quads of different colours tie
+// everywhere they overlap, and slanted triangles cross them.
+TEST_F(OcclusionQuery, FlushingWhileDrawingChangesNoPixel) {
+  EXPECT_EQ(renderer_->flushEvery(), 0u) << "a Renderer starts without flushing";
+  EXPECT_EQ(defaultFlushTriangles(ctx_->gl()), kFlushTrianglesCpu) << "OSMesa is llvmpipe here";
+  std::vector<GeometryData> objects;
+  for (int i = 0; i < 24; ++i) {
+    double x = -4 + 0.3 * i;
+    objects.push_back(quad(x, x + 3, -3, 3, -10, float(i % 7) / 7.f));  // ties with the others
+    objects.push_back(triangle({x, -3, -8}, {x + 2, 3, -12}, {x + 1, -2, -9.5}));
+  }
+  std::vector<uint8_t> plain = render(objects);
+  for (uint64_t every : {1u, 2u, 5u}) {
+    renderer_->setFlushEvery(every);
+    uint64_t before = renderer_->flushes();
+    std::vector<uint8_t> flushed = render(objects);
+    uint64_t due = 0, expected = 0;  // a flush after the draw call that reaches `every`
+    for (const GeometryData& g : objects)
+      if ((due += g.indices.size() / 3) >= every) ++expected, due = 0;
+    EXPECT_EQ(renderer_->flushes() - before, expected) << "every " << every;
+    EXPECT_TRUE(flushed == plain) << "flushing every " << every << " triangles changed the frame";
+  }
+}
+
 // The fused stages' tie check: a fragment at exactly the depth already in
 // the buffer counts, one nearer or farther does not.
 TEST_F(OcclusionQuery, DepthEqualQueryFindsExactTiesOnly) {

@@ -221,6 +221,19 @@ TEST(VisibilityStageFused, TheRedrawPathIsExactToo) {
     }
 }
 
+// The clients flush their drawing every few thousand triangles by default
+// on llvmpipe (--flush-triangles auto); flushed after every triangle, every
+// stage mode's frames stay exact.
+TEST(VisibilityStage, FlushingAfterEveryTriangleIsExact) {
+  PlantScene& s = plant();
+  for (const char* mode : {"--visibility queries --stages split",
+                           "--visibility pyramid --stages split", "--stages fused"}) {
+    std::string out = s.dir / ("flush1" + test::slug(mode));
+    ASSERT_EQ(s.render(3, s.fly, out, std::string(mode) + " --flush-triangles 1"), 0);
+    EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0) << mode;
+  }
+}
+
 // Fused stages leave out of step 1 the last frame's visible objects that
 // last frame's depth, moved to the new camera, hides (--predict on). The guess must only change
 // what is drawn first: frames stay exact, and on this fly-through it leaves objects out, so that 1
