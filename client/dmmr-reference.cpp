@@ -18,10 +18,7 @@ int main(int argc, char** argv) {
   app.add_option("--from-frame", o.from_frame,
                  "resume an interrupted run: render from this frame on (earlier frames and "
                  "their stats rows are kept)");
-  app.add_option("--flush-triangles", o.flush_triangles,
-                 "flush every N triangles drawn (0, the default: never, plain brute force; -1: "
-                 "the driver's default, as dmmr-render's auto); never changes a pixel")
-      ->check(CLI::Range(int64_t(-1), int64_t(1) << 40));
+  dmmr::addFlushOption(app, &o.flush_triangles);
   dmmr::addCacheOptions(app, o.cache);
   dmmr::addConfigOption(app);
   app.add_flag("--exact-visible", o.exact_visible,

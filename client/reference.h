@@ -30,10 +30,10 @@ struct ReferenceOptions {
   // Resume an interrupted run: render frames from this one on; the stats
   // CSV keeps the rows of the frames before it.
   uint32_t from_frame = 0;
-  // Renderer::setFlushEvery for the frames (0: never, as brute force always
-  // drew; -1: the driver's default, as the clients). The floor (exact_visible)
-  // is drawn with the driver's default, as dmmr-render draws.
-  int64_t flush_triangles = 0;
+  // Renderer::setFlushEvery (0: never; -1: the driver's default, as the
+  // clients draw). The floor (exact_visible) is drawn with the driver's
+  // default whatever this says.
+  int64_t flush_triangles = -1;
 };
 
 // Throws Error on bad input; frames already written stay on disk. An

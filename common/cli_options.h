@@ -3,6 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -31,6 +32,26 @@ inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view,
       ->check(CLI::Range(1.0, 179.0));
   app.add_option("--near", view.near, "near plane distance (default: scene diagonal * 1e-5)")
       ->check(CLI::PositiveNumber);
+}
+
+// --flush-triangles auto|N into `*triangles` (-1 for auto): how often the
+// renderer flushes its drawing (Renderer::setFlushEvery; auto: the driver's
+// default, defaultFlushTriangles). Every renderer of a run takes it, so that
+// the reference draws as the clients do.
+inline void addFlushOption(CLI::App& app, int64_t* triangles) {
+  app.add_option_function<std::string>(
+         "--flush-triangles",
+         [triangles](const std::string& v) { *triangles = v == "auto" ? -1 : std::stoll(v); },
+         "flush the drawing every N triangles, so that a CPU rasteriser bins one batch "
+         "while it rasterises the last (auto, the default: 4096 on llvmpipe and softpipe, 0 "
+         "elsewhere; 0: never); never changes a pixel")
+      ->check([](const std::string& v) {
+        if (v == "auto") return std::string();
+        size_t digits = v.find_first_not_of("0123456789");
+        return !v.empty() && digits == std::string::npos && v.size() <= 12
+                   ? std::string()
+                   : std::string("auto or a count of triangles");
+      });
 }
 
 // --config FILE: a run config (TOML or INI) with the options' long names as

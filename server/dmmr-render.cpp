@@ -88,18 +88,7 @@ int main(int argc, char** argv) {
                "draw occluders with their level of detail (faster, approximate)");
   app.add_flag("--potential-occluders-every-frame", c.visibility.potential_every_frame,
                "draw the preprocessor's occluders every frame, not only without a previous list");
-  std::string flush = "auto";
-  app.add_option("--flush-triangles", flush,
-                 "flush the clients' drawing every N triangles so that a CPU rasteriser bins one "
-                 "batch while it rasterises the last (auto: 4096 on llvmpipe, 0 elsewhere; 0: "
-                 "never); never changes a pixel")
-      ->check([](const std::string& v) {
-        if (v == "auto") return std::string();
-        char* end = nullptr;
-        long long n = std::strtoll(v.c_str(), &end, 10);
-        return end && *end == 0 && !v.empty() && n >= 0 ? std::string()
-                                                        : "auto or a count of triangles";
-      });
+  dmmr::addFlushOption(app, &c.flush_triangles);
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
@@ -222,7 +211,6 @@ int main(int argc, char** argv) {
                                            : dmmr::StageMode::Split;
   c.visibility.governor = costModel == "on";
   c.visibility.predict = predict == "on";
-  c.flush_triangles = flush == "auto" ? -1 : std::strtoll(flush.c_str(), nullptr, 10);
   if (c.visibility.stages != dmmr::StageMode::Split &&
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)
