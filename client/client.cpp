@@ -353,7 +353,25 @@ class Culler {
 
   // The cost model turned culling off for this job: everything is drawn,
   // and the region's objects are the next frame's occluders.
-  void skip(const FrameJob& job) { adopt(job, job.objects); }
+  void skip(const FrameJob& job) {
+    adopt(job, job.objects);
+    skipped_now_ = true;
+  }
+
+  // Instead of skip, on a job the cost model probes: after everything was
+  // drawn, tests the region's objects against that depth (the finished
+  // frame's), so that the cost model learns what culling would leave, and
+  // the next frame starts from what passed rather than from everything.
+  // Returns what passed, ascending.
+  std::vector<uint32_t> probe(const FrameJob& job, Decision* d) {
+    std::vector<uint32_t> candidates;
+    for (uint32_t o : job.objects)
+      if (!(job.frame < marked_until_[o])) candidates.push_back(o);
+    std::vector<uint32_t> passed = testPyramid(candidates, job, d);
+    std::sort(passed.begin(), passed.end());
+    adopt(job, passed);
+    return passed;
+  }
 
   // Another culler decided this job (--stages auto runs split frames
   // between fused ones): its visible list (ascending) is this one's next
@@ -423,7 +441,10 @@ class Culler {
     std::vector<uint32_t> arrived;
     std::set_difference(job.hints.begin(), job.hints.end(), last_region_.begin(),
                         last_region_.end(), std::back_inserter(arrived));
-    if (guessCollapsed(regionTriangles(scene_, previous_), regionTriangles(scene_, before_)))
+    // A list from a frame drawn in full (skip) is the whole region, not
+    // what was visible: no guess to fall back on.
+    if (!before_skipped_ &&
+        guessCollapsed(regionTriangles(scene_, previous_), regionTriangles(scene_, before_)))
       arrived = mergeSorted({arrived, before_});
     if (arrived.empty())
       return planVisibility(job.objects, previous_, potential, marked_until_, job.frame);
@@ -442,6 +463,9 @@ class Culler {
       sortUnique(&visible_now_);  // the jobs' lists, each ascending, one after another
       before_.swap(previous_);
       previous_.swap(visible_now_);
+      before_skipped_ = previous_skipped_;
+      previous_skipped_ = skipped_now_;
+      skipped_now_ = false;
       sortUnique(&region_now_);
       last_region_.swap(region_now_);
       passed_now_.clear();
@@ -690,7 +714,10 @@ class Culler {
   DepthPyramid pyramid_;
   Camera pyramid_camera_;                // the camera pyramid_'s depth was drawn with
   uint32_t pyramid_frame_ = UINT32_MAX;  // and its frame
-  PredictedDepth predicted_;             // last frame's depth seen from this frame's camera
+  // Whether the lists came from frames drawn in full (skip): last frame's
+  // (previous_), the frame before's (before_), this frame's so far.
+  bool previous_skipped_ = false, before_skipped_ = false, skipped_now_ = false;
+  PredictedDepth predicted_;  // last frame's depth seen from this frame's camera
   std::vector<ScreenBound> bounds_;
   enum class RedrawHook { None, Always, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
   std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
@@ -705,7 +732,12 @@ class Culler {
 // records when frames finish).
 class StageControl {
  public:
-  StageControl(bool governor, StageMode stages) : enabled_(governor), stages_(stages) {}
+  StageControl(bool governor, StageMode stages) : enabled_(governor), stages_(stages) {
+    // Test hook: DMMR_CULL_PAUSE=N starts the run with culling paused for N
+    // jobs, so that only the cost model's probes can turn it back on.
+    if (const char* pause = std::getenv("DMMR_CULL_PAUSE"))
+      g_.pauseFor(uint32_t(std::strtoul(pause, nullptr, 10)));
+  }
   // The stage mode of `frame`.
   // During the trial, a block's first frame waits (at most 2 s) until the
   // render stage has finished the frame before, so that one mode's block
@@ -743,6 +775,14 @@ class StageControl {
   bool culls() {
     std::lock_guard<std::mutex> lock(mu_);
     return !enabled_ || g_.culls();
+  }
+  bool probes() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return enabled_ && g_.probes();
+  }
+  void probed(const CullCost& c) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (enabled_) g_.probed(c);
   }
   void record(bool culled, const CullCost& c) {
     std::lock_guard<std::mutex> lock(mu_);
@@ -931,6 +971,7 @@ class RenderStage {
     };
     bool fused_culled = v.fused && control_.culls(), culled = v.culled || fused_culled;
     Decision fused;
+    double probe_ms = 0;  // the cost model's probe, when it paused culling
     if (fused_culled) {
       fused = culler_->drawFused(job, draw);
       st.prepare_ms = fused.prepare_ms;
@@ -940,11 +981,13 @@ class RenderStage {
       st.visible = fused.visible.size();
       st.triangles = fused.triangles;
     } else {
-      if (v.fused)
+      bool probe = v.fused && control_.probes();
+      if (v.fused && !probe)
         culler_->skip(job);
-      else if (culler_)
+      else if (!v.fused && culler_)
         culler_->adopt(job, v.visible);  // a split frame of --stages auto
       for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
+      if (probe) probeCulling(job, t0, st, &probe_ms);
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
@@ -955,7 +998,7 @@ class RenderStage {
     }
     addGpuStats(st, gpu_before, gl_->meshes.stats());
     addHostStats(st);
-    double culling = fused_culled ? fused.prepare_ms + fused.retrieve_ms : 0;
+    double culling = fused_culled ? fused.prepare_ms + fused.retrieve_ms : probe_ms;
     st.render_ms = msSince(t0) - st.load_ms - culling;
     // Deciding cost: the visibility stage's work, or the fused stage's
     // readback, tests and redraws.
@@ -973,6 +1016,29 @@ class RenderStage {
 
   void sent(double ms) { last_send_ms_ = ms; }
 
+ private:
+  // A job drawn in full while the cost model paused culling, and due for a
+  // probe (CullingGovernor::probes): the culler tests the region against the
+  // finished frame's depth, and the cost model hears what culling it would
+  // have cost (the probe's readback and tests, twice, as a culled fused
+  // frame reads back and tests at least twice) and saved (the draw time of
+  // the triangles that did not pass). Its time counts as deciding.
+  void probeCulling(const FrameJob& job, Clock::time_point t0, ClientStats& st, double* probe_ms) {
+    gl_->renderer.finish();  // drawing, not probing
+    double draw_ms = msSince(t0) - st.load_ms;
+    auto tp = Clock::now();
+    Decision d;
+    std::vector<uint32_t> passed = culler_->probe(job, &d);
+    *probe_ms = msSince(tp);
+    st.prepare_ms = *probe_ms - d.retrieve_ms;
+    st.retrieve_ms = d.retrieve_ms;
+    st.queried = d.tested;
+    uint64_t region = regionTriangles(scene_, job.objects), kept = regionTriangles(scene_, passed);
+    control_.probed(CullCost{2 * *probe_ms, region ? draw_ms * double(kept) / double(region) : 0,
+                             kept, region});
+  }
+
+ public:
  private:
   // The host levels are shared by both stages; each sub-frame reports their
   // activity since the previous one.

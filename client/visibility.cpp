@@ -84,12 +84,21 @@ void CullingGovernor::culled(const CullCost& c) {
   if (++bad_ < patience_) return;
   off_left_ = off_len_;
   off_len_ = std::min(max_off_, off_len_ * 2);
+  since_probe_ = 0;
 }
 
 void CullingGovernor::unculled() {
   // Back on with full patience: the first frame after a pause decides
   // against a stale occluder set and costs more than culling will.
   if (off_left_ > 0 && --off_left_ == 0) bad_ = 0;
+  ++since_probe_;
+}
+
+void CullingGovernor::probed(const CullCost& c) {
+  since_probe_ = 0;
+  if (off_left_ == 0 || net(c) < 0) return;
+  off_left_ = 0;
+  bad_ = 0;
 }
 
 StageMode StageTrial::modeFor(uint32_t frame) const {

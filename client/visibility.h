@@ -116,21 +116,43 @@ struct CullCost {
   uint64_t drawn_triangles = 0;
   uint64_t region_triangles = 0;  // every object of the region's list
 };
+//
+// A pause is blind to what culling would save once the view changes (the
+// camera turns from a view where nearly everything shows to one where
+// little does), so every `probe_every` frames of a pause the caller may
+// probe: test the frame it drew in full, and report what culling would have
+// cost and saved (probed); a probe that pays ends the pause.
 class CullingGovernor {
  public:
-  explicit CullingGovernor(uint32_t min_off = 8, uint32_t max_off = 128, uint32_t patience = 3)
-      : min_off_(min_off), max_off_(max_off), patience_(patience), off_len_(min_off) {}
+  explicit CullingGovernor(uint32_t min_off = 8, uint32_t max_off = 128, uint32_t patience = 3,
+                           uint32_t probe_every = 4)
+      : min_off_(min_off),
+        max_off_(max_off),
+        patience_(patience),
+        probe_every_(probe_every),
+        off_len_(min_off) {}
   bool culls() const { return off_left_ == 0; }
+  // Whether this unculled frame should be probed: during a pause, once
+  // probe_every frames have passed since it began or since the last probe.
+  bool probes() const { return off_left_ > 0 && since_probe_ >= probe_every_; }
   // After a frame that culled.
   void culled(const CullCost& c);
   // After a frame that did not.
   void unculled();
+  // A probe's estimate of culling the frame: ends the pause when it pays.
+  void probed(const CullCost& c);
+  // Starts a pause of `frames` frames as if culling had not paid (the test
+  // hook DMMR_CULL_PAUSE starts a client's run so).
+  void pauseFor(uint32_t frames) {
+    off_left_ = frames;
+    since_probe_ = 0;
+  }
   // Estimated ms the frame's culling saved (negative: it cost).
   static double net(const CullCost& c);
 
  private:
-  uint32_t min_off_, max_off_, patience_;
-  uint32_t off_len_, off_left_ = 0, bad_ = 0;
+  uint32_t min_off_, max_off_, patience_, probe_every_;
+  uint32_t off_len_, off_left_ = 0, bad_ = 0, since_probe_ = 0;
 };
 
 // `--stages auto`: after frame 0 (which loads geometry), blocks of `block`

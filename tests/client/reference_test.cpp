@@ -183,3 +183,32 @@ TEST(Reference, CorruptSceneIsRefusedNamingTheFile) {
   EXPECT_EQ(status, 1);
   EXPECT_NE(out.find("bounds.bin"), std::string::npos) << out;
 }
+
+// --flush-triangles: auto or a count (shared with dmmr-render,
+// cli_options.h); flushing after every draw gives the same frames as never.
+TEST(Reference, FlushTrianglesTakesAutoOrACountAndChangesNoPixel) {
+  TempDir dir;
+  std::string scene = makeScene(dir);
+  std::ofstream(dir / "p.path") << "0 0 0 0 0 0 0 1\n1 0.2 0 0 0 0 0 1\n";
+  auto run = [&](const std::string& flush, const std::string& out, int* status) {
+    return test::runCapture(test::tool("dmmr-reference") + " --scene " + scene +
+                                " --walkthrough " + (dir / "p.path") + " --out " + (dir / out) +
+                                " --width 96 --height 64 --no-progress --flush-triangles " + flush,
+                            status);
+  };
+  int status = 0;
+  for (const char* flush : {"0", "1", "auto"}) {
+    std::string log = run(flush, std::string("f") + flush, &status);
+    ASSERT_EQ(status, 0) << flush << ": " << log;
+  }
+  for (const char* other : {"f1", "fauto"}) {
+    std::vector<FrameDiff> diffs = compareDirectories(dir / "f0", dir / other);
+    EXPECT_EQ(diffs.size(), 2u);
+    for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << other << " " << d.name;
+  }
+  for (const char* bad : {"-1", "x", "12k"}) {
+    std::string log = run(bad, "bad", &status);
+    EXPECT_NE(status, 0) << bad;
+    EXPECT_NE(log.find("--flush-triangles"), std::string::npos) << log;
+  }
+}

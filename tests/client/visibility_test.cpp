@@ -341,6 +341,36 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   EXPECT_EQ(off, 4);
 }
 
+TEST(CullingGovernor, ProbesEveryFewFramesOfAPauseAndAProbeThatPaysEndsIt) {
+  CullingGovernor g(16, 32, 3, 4);
+  CullCost bad = cost(20, 100, 990, 1000), good = cost(1, 10, 10, 100000);
+  EXPECT_FALSE(g.probes()) << "no pause, nothing to probe";
+  for (int k = 0; k < 3; ++k) g.culled(bad);
+  ASSERT_FALSE(g.culls());
+  std::vector<bool> due;
+  for (int f = 0; f < 4; ++f) {
+    due.push_back(g.probes());
+    g.unculled();
+  }
+  EXPECT_EQ(due, (std::vector<bool>{false, false, false, false}));
+  EXPECT_TRUE(g.probes()) << "the pause's 5th frame";
+  g.probed(bad);  // would not pay: the pause goes on, the next probe 4 frames on
+  EXPECT_FALSE(g.culls());
+  g.unculled();
+  EXPECT_FALSE(g.probes());
+  for (int f = 0; f < 3; ++f) g.unculled();
+  EXPECT_TRUE(g.probes());
+  g.probed(good);
+  EXPECT_TRUE(g.culls()) << "a probe that pays ends the pause";
+  EXPECT_FALSE(g.probes());
+  g.unculled();  // the probed frame itself was drawn in full
+  EXPECT_TRUE(g.culls());
+  // A hook's pause is probed the same way.
+  g.pauseFor(100);
+  for (int f = 0; f < 4; ++f) g.unculled();
+  EXPECT_TRUE(g.probes());
+}
+
 TEST(CullingGovernor, FramesCulledAheadOfAPauseDoNotExtendIt) {
   CullingGovernor g(4, 64, 3);
   CullCost bad = cost(20, 100, 990, 1000);

@@ -234,6 +234,37 @@ TEST(VisibilityStage, FlushingAfterEveryTriangleIsExact) {
   }
 }
 
+// While the cost model pauses culling, every 4th frame drawn in full is
+// probed (its depth read back, the region tested): a probe that finds culling
+// paying ends the pause. A hook starts the run paused for longer than the
+// walkthrough, so the frames that cull are the probes' doing; exact either way.
+TEST(VisibilityStageFused, AProbeEndsAPauseOfTheCostModel) {
+  PlantScene& s = plant();
+  for (int clients : {1, 3}) {
+    std::string out = s.dir / ("probe" + std::to_string(clients));
+    int status = 0;
+    std::string log = test::runCapture(
+        "timeout 120 " + test::mpirun(clients + 1) + " -x DMMR_CULL_PAUSE=1000 " +
+            test::tool("dmmr-render") + " --no-progress" + kSize + " --scene " + s.scene +
+            " --walkthrough " + s.fly + " --out " + out + " --stages fused --stats " + out + ".csv",
+        &status);
+    ASSERT_EQ(status, 0) << log;
+    EXPECT_EQ(differingPixels(s.fly_reference, out, kFlyFrames), 0) << clients << " clients";
+    std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
+    ASSERT_EQ(rows.size(), kFlyFrames);
+    size_t culled = 0;
+    for (size_t f = 0; f < rows.size(); ++f) {
+      // Unculled, a client draws every object of its region.
+      bool drew_all =
+          clientSum(rows[f], clients, "visible") >= clientSum(rows[f], clients, "objects");
+      if (f < 4)
+        EXPECT_TRUE(drew_all) << clients << " clients, frame " << f << ": the pause was not kept";
+      culled += !drew_all;
+    }
+    EXPECT_GE(culled, kFlyFrames / 2) << clients << " clients: the probes never ended the pause";
+  }
+}
+
 // Fused stages leave out of step 1 the last frame's visible objects that
 // last frame's depth, moved to the new camera, hides (--predict on). The guess must only change
 // what is drawn first: frames stay exact, and on this fly-through it leaves objects out, so that 1
