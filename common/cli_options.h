@@ -34,17 +34,18 @@ inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view,
       ->check(CLI::PositiveNumber);
 }
 
-// --flush-triangles auto|N into `*triangles` (-1 for auto): how often the
+// --flush-triangles auto|N into `*triangles` (-1 for auto): how the
 // renderer flushes its drawing (Renderer::setFlushEvery; auto: the driver's
-// default, defaultFlushTriangles). Every renderer of a run takes it, so that
-// the reference draws as the clients do.
+// default, defaultFlushTriangles). `*triangles` holds the tool's default.
 inline void addFlushOption(CLI::App& app, int64_t* triangles) {
+  std::string fallback = *triangles < 0 ? "auto" : std::to_string(*triangles);
   app.add_option_function<std::string>(
          "--flush-triangles",
          [triangles](const std::string& v) { *triangles = v == "auto" ? -1 : std::stoll(v); },
-         "flush the drawing every N triangles, so that a CPU rasteriser bins one batch "
-         "while it rasterises the last (auto, the default: 4096 on llvmpipe and softpipe, 0 "
-         "elsewhere; 0: never); never changes a pixel")
+         "flush the drawing after N triangles, then 2N more, 4N, ... from each frame and "
+         "readback on, so that a CPU rasteriser bins one batch while it rasterises the last "
+         "(auto: 4096 on llvmpipe and softpipe, 0 elsewhere; 0: never; default " +
+             fallback + "); never changes a pixel")
       ->check([](const std::string& v) {
         if (v == "auto") return std::string();
         size_t digits = v.find_first_not_of("0123456789");

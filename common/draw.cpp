@@ -325,6 +325,7 @@ void Renderer::releaseTexture(GLuint id) {
 }
 
 void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
+  drained();  // a new frame's first batch goes out early again
   camera_ = camera;
   view_rotation_ = viewRotation(camera);
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
@@ -546,6 +547,7 @@ void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
   rgba->resize(size_t(region.area()) * 4);
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
   gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_RGBA, GL_UNSIGNED_BYTE, rgba->data());
+  drained();
   gl_.check("readPixels");
 }
 
@@ -554,6 +556,7 @@ void Renderer::readDepth(const Rect& region, std::vector<float>* depth) {
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
   gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_DEPTH_COMPONENT, GL_FLOAT,
                  depth->data());
+  drained();
   gl_.check("readDepth");
 }
 
@@ -611,15 +614,17 @@ uint64_t defaultFlushTriangles(const GlApi& gl) {
 
 void Renderer::submitted(uint64_t indices) {
   unflushed_ += indices / 3;
-  if (flush_every_ && unflushed_ >= flush_every_) {
+  if (flush_every_ && unflushed_ >= next_flush_) {
     gl_.Flush();
     unflushed_ = 0;
+    next_flush_ *= 2;
     ++flushes_;
   }
 }
 
 void Renderer::finish() {
   gl_.Finish();
+  drained();
 }
 
 }  // namespace dmmr

@@ -441,8 +441,9 @@ TEST_F(OcclusionQuery, EqualColorPassCountsOneFragmentPerPixelItChangedUnlessTie
 
 // Flushing while drawing (Renderer::setFlushEvery) lets llvmpipe rasterise
 // one batch while the next is binned; GL keeps the order, so depth ties
-// still resolve to the first drawn. Coplanar quads of different colours tie
-// everywhere they overlap, and slanted triangles cross them.
+// still resolve to the first drawn. The schedule starts again with each
+// frame (the second render of the same objects flushes as often). Coplanar quads of different
+// colours tie everywhere they overlap, and slanted triangles cross them.
 TEST_F(OcclusionQuery, FlushingWhileDrawingChangesNoPixel) {
   EXPECT_EQ(renderer_->flushEvery(), 0u) << "a Renderer starts without flushing";
   EXPECT_EQ(defaultFlushTriangles(ctx_->gl()), kFlushTrianglesCpu) << "OSMesa is llvmpipe here";
@@ -457,10 +458,14 @@ TEST_F(OcclusionQuery, FlushingWhileDrawingChangesNoPixel) {
     renderer_->setFlushEvery(every);
     uint64_t before = renderer_->flushes();
     std::vector<uint8_t> flushed = render(objects);
-    uint64_t due = 0, expected = 0;  // a flush after the draw call that reaches `every`
+    // A flush after the draw call that reaches `every` triangles, then twice
+    // as many, four times, ...
+    uint64_t due = 0, next = every, expected = 0;
     for (const GeometryData& g : objects)
-      if ((due += g.indices.size() / 3) >= every) ++expected, due = 0;
+      if ((due += g.indices.size() / 3) >= next) ++expected, due = 0, next *= 2;
     EXPECT_EQ(renderer_->flushes() - before, expected) << "every " << every;
+    EXPECT_TRUE(render(objects) == plain);
+    EXPECT_EQ(renderer_->flushes() - before, 2 * expected) << "every " << every << ", again";
     EXPECT_TRUE(flushed == plain) << "flushing every " << every << " triangles changed the frame";
   }
 }
