@@ -42,8 +42,9 @@ inline void addFlushOption(CLI::App& app, int64_t* triangles) {
   app.add_option_function<std::string>(
          "--flush-triangles",
          [triangles](const std::string& v) { *triangles = v == "auto" ? -1 : std::stoll(v); },
-         "flush the drawing after N triangles, then 2N more, 4N, ... from each frame and "
-         "readback on, so that a CPU rasteriser bins one batch while it rasterises the last "
+         "flush the drawing after N triangles, then after 2N more, then every 4N, from each "
+         "frame and readback on, so that a CPU rasteriser bins one batch while it rasterises "
+         "the last "
          "(auto: 4096 on llvmpipe and softpipe, 0 elsewhere; 0: never; default " +
              fallback + "); never changes a pixel")
       ->check([](const std::string& v) {

@@ -1,5 +1,6 @@
 #include "draw.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <initializer_list>
@@ -617,7 +618,7 @@ void Renderer::submitted(uint64_t indices) {
   if (flush_every_ && unflushed_ >= next_flush_) {
     gl_.Flush();
     unflushed_ = 0;
-    next_flush_ *= 2;
+    next_flush_ = std::min(next_flush_ * 2, 4 * flush_every_);
     ++flushes_;
   }
 }

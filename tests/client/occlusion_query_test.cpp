@@ -8,6 +8,7 @@
 // and one pixel is 2D/64 wide.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -459,10 +460,11 @@ TEST_F(OcclusionQuery, FlushingWhileDrawingChangesNoPixel) {
     uint64_t before = renderer_->flushes();
     std::vector<uint8_t> flushed = render(objects);
     // A flush after the draw call that reaches `every` triangles, then twice
-    // as many, four times, ...
+    // as many, then every four times as many.
     uint64_t due = 0, next = every, expected = 0;
     for (const GeometryData& g : objects)
-      if ((due += g.indices.size() / 3) >= next) ++expected, due = 0, next *= 2;
+      if ((due += g.indices.size() / 3) >= next)
+        ++expected, due = 0, next = std::min(2 * next, 4 * every);
     EXPECT_EQ(renderer_->flushes() - before, expected) << "every " << every;
     EXPECT_TRUE(render(objects) == plain);
     EXPECT_EQ(renderer_->flushes() - before, 2 * expected) << "every " << every << ", again";
