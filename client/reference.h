@@ -30,11 +30,11 @@ struct ReferenceOptions {
   // Resume an interrupted run: render frames from this one on; the stats
   // CSV keeps the rows of the frames before it.
   uint32_t from_frame = 0;
-  // Renderer::setFlushEvery (0, the default: never, plain brute force; -1:
-  // the driver's default, as the clients draw, which measured no faster for
-  // frames of millions of triangles). The floor (exact_visible) is drawn
-  // with the driver's default whatever this says.
-  int64_t flush_triangles = 0;
+  // Renderer::setFlushEvery (-1, the default: the driver's, as the clients
+  // draw, so that brute force and culling are compared drawn the same way;
+  // 0: never). The floor (exact_visible) is drawn with the driver's default
+  // whatever this says.
+  int64_t flush_triangles = -1;
 };
 
 // Throws Error on bad input; frames already written stay on disk. An
