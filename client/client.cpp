@@ -162,6 +162,7 @@ class Culler {
   Decision decide(const FrameJob& job) {
     Decision d;
     auto t0 = Clock::now();
+    newJob();
     startFrame(job);
     VisibilityPlan plan = planFor(job);
     Renderer& r = gl_.renderer;
@@ -209,16 +210,24 @@ class Culler {
   // reference does. `draw` draws one object. Returns what was drawn.
   Decision drawFused(const FrameJob& job, const DrawFn& draw) {
     Decision d;
+    newJob();
     startFrame(job);
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
     if (opts_.predict) predictFirst(job, &first, &d);
     for (uint32_t o : first) d.triangles += draw(o);
-    gl_.renderer.finish();  // its rasterisation is drawing time
+    // The candidates' bounds need no depth: worked out while llvmpipe's
+    // threads still rasterise step 1.
     auto t0 = Clock::now();
     std::vector<uint32_t> candidates;
     for (uint32_t o : job.objects)
-      if (!(job.frame < marked_until_[o])) candidates.push_back(o);
+      if (!(job.frame < marked_until_[o])) {
+        candidates.push_back(o);
+        bound(o, job.camera);
+      }
+    d.prepare_ms += msSince(t0);
+    gl_.renderer.finish();  // its rasterisation is drawing time
+    t0 = Clock::now();
     std::vector<uint32_t> passed = testPyramid(candidates, job, &d);
     std::sort(passed.begin(), passed.end());
     auto newOnes = [&] {
@@ -364,6 +373,7 @@ class Culler {
   // the next frame starts from what passed rather than from everything.
   // Returns what passed, ascending.
   std::vector<uint32_t> probe(const FrameJob& job, Decision* d) {
+    newJob();
     std::vector<uint32_t> candidates;
     for (uint32_t o : job.objects)
       if (!(job.frame < marked_until_[o])) candidates.push_back(o);
@@ -568,11 +578,31 @@ class Culler {
   }
 
   // The object's conservative footprint and nearest depth (its query box's).
+  // `camera` must be the current job's (newJob): the bound is kept for the
+  // rest of the job, whose tests, batches and footprints ask for the same
+  // objects again.
   ScreenBound bound(uint32_t object, const Camera& camera) const {
+    if (bound_stamp_.size() != scene_.objects.size()) {
+      bound_stamp_.assign(scene_.objects.size(), 0);
+      bound_cache_.resize(scene_.objects.size());
+    }
+    if (bound_stamp_[object] == stamp_) return bound_cache_[object];
     const Box3d& box = scene_.objects[object].box;
     const Renderer& r = gl_.renderer;
-    if (!box.valid()) return ScreenBound{true};  // no box, no bound: it shows
-    return screenBound(queryBoxBounds(box, camera, r.height()), camera, r.width(), r.height());
+    ScreenBound b{true};  // no box, no bound: it shows
+    if (box.valid())
+      b = screenBound(queryBoxBounds(box, camera, r.height()), camera, r.width(), r.height());
+    bound_stamp_[object] = stamp_;
+    bound_cache_[object] = b;
+    return b;
+  }
+
+  // A new job: bounds kept for the last one no longer hold.
+  void newJob() {
+    if (++stamp_ == 0) {  // wrapped: no stamp may match a kept one
+      std::fill(bound_stamp_.begin(), bound_stamp_.end(), 0);
+      stamp_ = 1;
+    }
   }
 
   // The pixels of the region the object may cover.
@@ -719,6 +749,10 @@ class Culler {
   bool previous_skipped_ = false, before_skipped_ = false, skipped_now_ = false;
   PredictedDepth predicted_;  // last frame's depth seen from this frame's camera
   std::vector<ScreenBound> bounds_;
+  // bound()'s per job, by object: valid where bound_stamp_ equals stamp_.
+  mutable std::vector<ScreenBound> bound_cache_;
+  mutable std::vector<uint32_t> bound_stamp_;
+  uint32_t stamp_ = 1;
   enum class RedrawHook { None, Always, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
   std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
   GLuint count_query_ = 0;          // colorWhereEqual's GL_SAMPLES_PASSED
