@@ -191,8 +191,8 @@ TEST(Reference, FlushTrianglesTakesAutoOrACountAndChangesNoPixel) {
   std::string scene = makeScene(dir);
   std::ofstream(dir / "p.path") << "0 0 0 0 0 0 0 1\n1 0.2 0 0 0 0 0 1\n";
   auto run = [&](const std::string& flush, const std::string& out, int* status) {
-    return test::runCapture(test::tool("dmmr-reference") + " --scene " + scene +
-                                " --walkthrough " + (dir / "p.path") + " --out " + (dir / out) +
+    return test::runCapture(test::tool("dmmr-reference") + " --scene " + scene + " --walkthrough " +
+                                (dir / "p.path") + " --out " + (dir / out) +
                                 " --width 96 --height 64 --no-progress --flush-triangles " + flush,
                             status);
   };
@@ -204,7 +204,8 @@ TEST(Reference, FlushTrianglesTakesAutoOrACountAndChangesNoPixel) {
   for (const char* other : {"f1", "fauto"}) {
     std::vector<FrameDiff> diffs = compareDirectories(dir / "f0", dir / other);
     EXPECT_EQ(diffs.size(), 2u);
-    for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << other << " " << d.name;
+    for (const FrameDiff& d : diffs)
+      EXPECT_EQ(d.diff.differing_pixels, 0) << other << " " << d.name;
   }
   for (const char* bad : {"-1", "x", "12k"}) {
     std::string log = run(bad, "bad", &status);
