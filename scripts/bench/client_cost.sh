@@ -67,8 +67,7 @@ for s in $scenes; do
       # shellcheck disable=SC2086
       "${mpi[@]}" "$render" --scene "out/bench/$s.scene" --walkthrough "$p" \
         --out "$out/$s-$label" "${view[@]}" --stats "$out/$s-$label-r$r.csv" ${c#*|}
-      $bin/dmmr-compare "$out/$s-ref" "$out/$s-$label" --csv "$out/$s-$label-r$r.cmp.csv" \
-        --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
+      diff_frames "$out/$s-ref" "$out/$s-$label" "$out/$s-$label-r$r.cmp.csv"
     done
   done
 done

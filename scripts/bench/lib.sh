@@ -15,3 +15,7 @@ scene() {  # name, scenegen arguments...
     --walkthrough "out/bench/$name.generated.path" >/dev/null
   [ -d "out/bench/$name.scene" ] || $bin/dmmr-preprocess "out/bench/$name.osgb" -o "out/bench/$name.scene" --no-progress >/dev/null
 }
+
+diff_frames() {  # reference dir, frames dir, CSV: per-frame differences, never failing the run
+  $bin/dmmr-compare "$1" "$2" --csv "$3" --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
+}

@@ -38,8 +38,7 @@ for r in $(seq 1 "$reps"); do
       opts=(${variants[$i]})
       "${mpi[@]}" -x LP_NUM_THREADS="$lp" "$bin/dmmr-render" --scene "$scene" --walkthrough "$path" \
         --out "$out/$s-v$i" "${view[@]}" --stats "$out/$s-v$i-r$r.csv" "${opts[@]}"
-      $bin/dmmr-compare "$ref" "$out/$s-v$i" --csv "$out/$s-v$i-r$r.cmp.csv" \
-        --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
+      diff_frames "$ref" "$out/$s-v$i" "$out/$s-v$i-r$r.cmp.csv"
     done
     if [ "$r" -le "$ref_reps" ]; then
       for i in "${!ref_variants[@]}"; do
@@ -47,8 +46,7 @@ for r in $(seq 1 "$reps"); do
         opts=(${ref_variants[$i]})
         LP_NUM_THREADS=$lp $bin/dmmr-reference --scene "$scene" --walkthrough "$path" \
           --out "$out/$s-ref$i" "${view[@]}" --stats "$out/$s-ref$i-r$r.csv" "${opts[@]}"
-        $bin/dmmr-compare "$ref" "$out/$s-ref$i" --csv "$out/$s-ref$i-r$r.cmp.csv" \
-          --min-psnr 0 --max-diff-pixels 999999999 >/dev/null
+        diff_frames "$ref" "$out/$s-ref$i" "$out/$s-ref$i-r$r.cmp.csv"
       done
     fi
   done
