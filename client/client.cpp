@@ -107,8 +107,7 @@ struct GlStage {
         renderer(context->gl(), view.width, view.height),
         backend(renderer),
         meshes(scene, host, backend, cache.gpu_budget, cache.eviction) {
-    renderer.setFlushEvery(flush_triangles < 0 ? defaultFlushTriangles(context->gl())
-                                               : uint64_t(flush_triangles));
+    renderer.setFlushEvery(flushTrianglesFor(context->gl(), flush_triangles));
   }
   std::unique_ptr<GlContext> context;
   Renderer renderer;
@@ -219,12 +218,8 @@ class Culler {
     // The candidates' bounds need no depth: worked out while llvmpipe's
     // threads still rasterise step 1.
     auto t0 = Clock::now();
-    std::vector<uint32_t> candidates;
-    for (uint32_t o : job.objects)
-      if (!(job.frame < marked_until_[o])) {
-        candidates.push_back(o);
-        bound(o, job.camera);
-      }
+    std::vector<uint32_t> candidates = unmarked(job);
+    for (uint32_t o : candidates) bound(o, job.camera);
     d.prepare_ms += msSince(t0);
     gl_.renderer.finish();  // its rasterisation is drawing time
     t0 = Clock::now();
@@ -374,10 +369,7 @@ class Culler {
   // Returns what passed, ascending.
   std::vector<uint32_t> probe(const FrameJob& job, Decision* d) {
     newJob();
-    std::vector<uint32_t> candidates;
-    for (uint32_t o : job.objects)
-      if (!(job.frame < marked_until_[o])) candidates.push_back(o);
-    std::vector<uint32_t> passed = testPyramid(candidates, job, d);
+    std::vector<uint32_t> passed = testPyramid(unmarked(job), job, d);
     std::sort(passed.begin(), passed.end());
     adopt(job, passed);
     return passed;
@@ -595,6 +587,15 @@ class Culler {
     bound_stamp_[object] = stamp_;
     bound_cache_[object] = b;
     return b;
+  }
+
+  // The job's objects not marked visible (the fused tests' candidates),
+  // ascending.
+  std::vector<uint32_t> unmarked(const FrameJob& job) const {
+    std::vector<uint32_t> out;
+    for (uint32_t o : job.objects)
+      if (!(job.frame < marked_until_[o])) out.push_back(o);
+    return out;
   }
 
   // A new job: bounds kept for the last one no longer hold.

@@ -79,7 +79,7 @@ void runReference(const ReferenceOptions& opts) {
   auto ctx = createContext(opts.context);
   Renderer renderer(ctx->gl(), opts.view.width, opts.view.height);
   const uint64_t flush_default = defaultFlushTriangles(ctx->gl()),
-                 flush = opts.flush_triangles < 0 ? flush_default : uint64_t(opts.flush_triangles);
+                 flush = flushTrianglesFor(ctx->gl(), opts.flush_triangles);
   renderer.setFlushEvery(flush);
 
   // With unlimited budgets every geometry is uploaded once, on first use;

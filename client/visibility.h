@@ -116,7 +116,6 @@ struct CullCost {
   uint64_t drawn_triangles = 0;
   uint64_t region_triangles = 0;  // every object of the region's list
 };
-//
 // A pause is blind to what culling would save once the view changes (the
 // camera turns from a view where nearly everything shows to one where
 // little does), so every `probe_every` frames of a pause the caller may

@@ -61,6 +61,10 @@ struct Rgb {
 // batches its own submissions).
 inline constexpr uint64_t kFlushTrianglesCpu = 4096;
 uint64_t defaultFlushTriangles(const GlApi& gl);
+// A --flush-triangles setting (-1: auto) as setFlushEvery takes it.
+inline uint64_t flushTrianglesFor(const GlApi& gl, int64_t option) {
+  return option < 0 ? defaultFlushTriangles(gl) : uint64_t(option);
+}
 
 class Renderer {
  public:
