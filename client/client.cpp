@@ -589,6 +589,25 @@ class Culler {
     return b;
   }
 
+  // Whether no part box of the object (formats.h, GeometryParts) can show
+  // against the pyramid, `ob` being its own bound: each part's rectangle
+  // with the object's depth bound (partBound; docs/architecture.md, "Part
+  // boxes"). False when the scene has no parts for it.
+  bool partsHide(uint32_t object, const Camera& camera, const ScreenBound& ob) const {
+    if (!opts_.part_boxes || scene_.parts.empty() || ob.reaches_near) return false;
+    const ObjectBounds& o = scene_.objects[object];
+    const GeometryParts& g = scene_.parts[o.geometry];
+    if (g.parts.empty() || !o.box.valid()) return false;
+    const Renderer& r = gl_.renderer;
+    Box3d q = queryBoxBounds(o.box, camera, r.height());
+    for (size_t k = 0; k < g.parts.size(); ++k) {
+      Box3d part = queryPartBounds(transformBox(o.transform, partBox(g, k)), o.box, q);
+      if (!pyramid_.hides(partBound(ob, screenRect(part, camera, r.width(), r.height()))))
+        return false;
+    }
+    return true;
+  }
+
   // The job's objects not marked visible (the fused tests' candidates),
   // ascending.
   std::vector<uint32_t> unmarked(const FrameJob& job) const {
@@ -645,9 +664,9 @@ class Culler {
           for (size_t k = b + 1; k < e; ++k) u = unite(u, bounds_[k]);
           ++d->tested;
           if (pyramid_.hides(u)) continue;
-          if (e - b == 1)
-            passed.push_back(candidates[b]);
-          else
+          if (e - b == 1) {
+            if (!partsHide(candidates[b], job.camera, u)) passed.push_back(candidates[b]);
+          } else
             next.push_back({b, e});
         }
       runs.swap(next);
@@ -1374,7 +1393,10 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
     // rasterising clients never traverse it.
     bool named =
         opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
-    scene = loadScene(opts.scene, /*with_skeleton=*/opts.raytrace);
+    // Part boxes serve the depth-pyramid tests only.
+    bool parts = !opts.raytrace && opts.visibility.part_boxes &&
+                 opts.visibility.method == VisibilityMethod::Pyramid;
+    scene = loadScene(opts.scene, /*with_skeleton=*/opts.raytrace, parts);
     if (named)
       effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);
     if (!opts.raytrace) {

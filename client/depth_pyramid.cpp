@@ -14,6 +14,20 @@ std::ostream& operator<<(std::ostream& os, const ScreenBound& b) {
 }
 
 ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int height) {
+  ScreenBound b = screenRect(box, camera, width, height);
+  if (b.reaches_near) return b;
+  // The entry-depth planes in pixel indices: ndc = (i + 0.5) * 2 / n - 1.
+  EntryDepthPlanes p = entryDepthPlanes(box, camera);
+  b.has_planes = true;
+  for (size_t i = 0; i < 3; ++i) {
+    const auto& k = p.k[i];
+    double sx = 2.0 / width, sy = 2.0 / height;
+    b.planes[i] = {k[0] * sx, k[1] * sy, k[0] * (0.5 * sx - 1) + k[1] * (0.5 * sy - 1) + k[2]};
+  }
+  return b;
+}
+
+ScreenBound screenRect(const Box3d& box, const Camera& camera, int width, int height) {
   DMMR_CHECK(box.valid() && width > 0 && height > 0);
   Mat4d view = viewRotation(camera);
   double f = 1.0 / std::tan(camera.fovy_deg * M_PI / 360.0), fx = f / camera.aspect;
@@ -53,14 +67,6 @@ ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int h
   // Depth = near / distance; rounded up by a relative 1e-6 for this
   // computation's own rounding.
   b.nearest = camera.near / nearestDist * (1 + 1e-6);
-  // The entry-depth planes in pixel indices: ndc = (i + 0.5) * 2 / n - 1.
-  EntryDepthPlanes p = entryDepthPlanes(box, camera);
-  b.has_planes = true;
-  for (size_t i = 0; i < 3; ++i) {
-    const auto& k = p.k[i];
-    double sx = 2.0 / width, sy = 2.0 / height;
-    b.planes[i] = {k[0] * sx, k[1] * sy, k[0] * (0.5 * sx - 1) + k[1] * (0.5 * sy - 1) + k[2]};
-  }
   return b;
 }
 
@@ -76,6 +82,17 @@ double ScreenBound::bound(int bx0, int by0, int bx1, int by1) const {
     d = std::min(d, v);
   }
   return d;
+}
+
+ScreenBound partBound(const ScreenBound& object, const ScreenBound& part) {
+  if (object.reaches_near) return object;
+  if (part.reaches_near) return part;
+  ScreenBound b = object;
+  b.x0 = std::max(object.x0, part.x0);
+  b.y0 = std::max(object.y0, part.y0);
+  b.x1 = std::min(object.x1, part.x1);
+  b.y1 = std::min(object.y1, part.y1);
+  return b;
 }
 
 ScreenBound unite(const ScreenBound& a, const ScreenBound& b) {

@@ -55,6 +55,16 @@ std::ostream& operator<<(std::ostream& os, const ScreenBound& b);
 // every pixel centre its geometry covers. Off-frame boxes give an empty
 // bound (never reaches_near unless a corner is at or before the near plane).
 ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int height);
+// The same without the entry-depth planes (has_planes false): the rectangle
+// and `nearest` only, for callers that need no more (partBound).
+ScreenBound screenRect(const Box3d& box, const Camera& camera, int width, int height);
+
+// What of `object` (an object's bound) a part of it can reach: `part`'s
+// rectangle (the bound of a part's query box, queryPartBounds) within
+// `object`'s, with `object`'s depth bound, which the shaders' depth clamp
+// guarantees for every fragment (a part's own depth is not: a sliver's
+// fragment can lie in front of its part). reaches_near if either does.
+ScreenBound partBound(const ScreenBound& object, const ScreenBound& part);
 
 // The smallest bound covering both: the union of the rectangles, the nearer
 // depth, and reaches_near if either does.

@@ -61,6 +61,10 @@ struct VisibilityOptions {
   // costs client CPU where the guess sends objects to the second pass
   // (plants4 at 1024x768: 25% more; docs/benchmarks.md).
   bool predict = false;
+  // Depth-pyramid tests: an object whose box passes is tested again by its
+  // part boxes (parts.bin), each part's rectangle with the object's depth
+  // bound; culled when none can show. Exact; needs a scene with parts.
+  bool part_boxes = true;
   // Hierarchical query rounds: runs of this many consecutive objects are
   // tested by their union box, then the runs that pass at the next size; the
   // last size must be 1. Each round waits once for the query results.

@@ -387,6 +387,10 @@ Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height) {
   return widened(box, camera, height, 1.0);
 }
 
+Box3d queryPartBounds(const Box3d& part, const Box3d& box, const Box3d& query_box) {
+  return Box3d{part.lo - (box.lo - query_box.lo), part.hi + (query_box.hi - box.hi)};
+}
+
 Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height) {
   return widened(box, camera, height, 0.5);
 }

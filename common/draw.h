@@ -45,6 +45,12 @@ uint64_t gpuBytes(const TextureData& t);
 // `height` pixels high (llvmpipe snaps to 1/256 pixel; a sub-pixel object
 // widened by 0.1% alone could cover a pixel centre its box missed).
 Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height);
+// A part of an object (a box within its box `box` holding some of its
+// triangles whole) widened by the margins that `query_box`
+// (queryBoxBounds(box, ...)) adds to `box` on each side: the rounding those
+// margins cover is that of the object's vertices, so the part's outline
+// covers every pixel centre its triangles can cover.
+Box3d queryPartBounds(const Box3d& part, const Box3d& box, const Box3d& query_box);
 // The box whose entry depth bounds every fragment of an object (the shaders'
 // boundedDepth): `box` widened by half of queryBoxBounds' margin, so that it
 // still encloses the object after rounding, while the query box's rasterised

@@ -1,5 +1,6 @@
 #include "formats.h"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@ constexpr FileKind kSkeletonKind{"DMMRSKEL", 1, "skeleton"};
 constexpr FileKind kOccludersKind{"DMMROCCL", 1, "occluders"};
 constexpr FileKind kGeometryKind{"DMMRGEOM", 1, "geometry"};
 constexpr FileKind kTextureKind{"DMMRTEXR", 1, "texture"};
+constexpr FileKind kPartsKind{"DMMRPART", 1, "part boxes"};
 
 enum GeometryFlags : uint8_t {
   kHasNormals = 1,
@@ -118,6 +120,95 @@ std::vector<ObjectBounds> decodeBounds(const std::vector<uint8_t>& file, const s
     if (ub > 1) r.fail(at("object", i) + ": volume kind must be 0 or 1");
     o.use_box = ub == 1;
     o.weight = r.u64("weight");
+  }
+  r.finish();
+  return out;
+}
+
+// ---- part boxes -----------------------------------------------------------
+
+namespace {
+// Coordinate `q` (0..255) of axis `a` of g.box: the ends exactly, and
+// clamped to the box between them (lo + extent * q / 255 may round past hi).
+double partCoordinate(const Box3d& box, int a, uint8_t q) {
+  if (q == 0) return box.lo[a];
+  if (q == 255) return box.hi[a];
+  return std::min(box.hi[a], box.lo[a] + (box.hi[a] - box.lo[a]) * (q / 255.0));
+}
+}  // namespace
+
+Box3d partBox(const GeometryParts& g, size_t k) {
+  const auto& q = g.parts[k];
+  Box3d b;
+  for (int a = 0; a < 3; ++a) {
+    b.lo[a] = partCoordinate(g.box, a, q[size_t(a)]);
+    b.hi[a] = partCoordinate(g.box, a, q[size_t(a) + 3]);
+  }
+  return b;
+}
+
+GeometryParts quantizeParts(const Box3d& box, const std::vector<Box3d>& parts) {
+  DMMR_CHECK(box.valid() && parts.size() <= kMaxParts);
+  GeometryParts g;
+  g.box = box;
+  for (const Box3d& p : parts) {
+    std::array<uint8_t, 6> q{};
+    for (int a = 0; a < 3; ++a) {
+      DMMR_CHECK(box.lo[a] <= p.lo[a] && p.lo[a] <= p.hi[a] && p.hi[a] <= box.hi[a]);
+      double ext = box.hi[a] - box.lo[a];
+      auto at = [&](double v) { return ext > 0 ? (v - box.lo[a]) / ext * 255 : 0.0; };
+      int lo = std::clamp(int(std::floor(at(p.lo[a]))), 0, 255);
+      int hi = std::clamp(int(std::ceil(at(p.hi[a]))), lo, 255);
+      // Outward until the decoded value holds the part (rounding).
+      while (lo > 0 && partCoordinate(box, a, uint8_t(lo)) > p.lo[a]) --lo;
+      while (hi < 255 && partCoordinate(box, a, uint8_t(hi)) < p.hi[a]) ++hi;
+      q[size_t(a)] = uint8_t(lo);
+      q[size_t(a) + 3] = uint8_t(hi);
+    }
+    g.parts.push_back(q);
+  }
+  return g;
+}
+
+std::vector<uint8_t> encodeParts(const std::vector<GeometryParts>& geometries) {
+  ByteWriter w;
+  w.u32(uint32_t(geometries.size()));
+  for (const auto& g : geometries) {
+    for (double v : {g.box.lo.x, g.box.lo.y, g.box.lo.z, g.box.hi.x, g.box.hi.y, g.box.hi.z})
+      w.f32(float(v));
+    w.u8(uint8_t(g.parts.size()));
+    for (const auto& q : g.parts)
+      for (uint8_t c : q) w.u8(c);
+  }
+  return wrapContainer(kPartsKind, w.bytes());
+}
+
+std::vector<GeometryParts> decodeParts(const std::vector<uint8_t>& file, const std::string& path) {
+  ByteReader r = payloadReader(kPartsKind, file, path);
+  uint32_t n = r.u32("geometry count");
+  constexpr size_t kRecord = 6 * 4 + 1;  // the least a geometry takes
+  if (n > r.remaining() / kRecord) r.fail("truncated: geometry count exceeds the file");
+  std::vector<GeometryParts> out(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    GeometryParts& g = out[i];
+    float v[6];
+    for (float& x : v) {
+      x = r.f32("geometry box");
+      if (!std::isfinite(x)) r.fail(at("geometry", i) + ": box not finite");
+    }
+    g.box.lo = Vec3d{v[0], v[1], v[2]};
+    g.box.hi = Vec3d{v[3], v[4], v[5]};
+    if (!g.box.valid()) r.fail(at("geometry", i) + ": box has min greater than max");
+    uint8_t count = r.u8("part count");
+    if (count > kMaxParts)
+      r.fail(at("geometry", i) + ": " + std::to_string(count) + " parts, at most " +
+             std::to_string(kMaxParts));
+    g.parts.resize(count);
+    for (auto& q : g.parts) {
+      for (uint8_t& c : q) c = r.u8("part");
+      for (size_t a = 0; a < 3; ++a)
+        if (q[a] > q[a + 3]) r.fail(at("geometry", i) + ": a part has min greater than max");
+    }
   }
   r.finish();
   return out;

@@ -4,6 +4,7 @@
 //   skeleton.bin    the scenegraph without geometry (pre-order nodes)
 //   bounds.bin      per object: geometry id, world transform, bounds, weight
 //   occluders.bin   objects marked as potential occluders
+//   parts.bin       per geometry: part boxes, for tighter occlusion tests
 //   geometry/NNNNNN.bin  one file per unique geometry (instances share one)
 //   textures/NNNNNN.bin  one file per unique diffuse texture
 //
@@ -12,6 +13,7 @@
 // scene loader validates references between files.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -99,6 +101,27 @@ struct TextureData {
   friend bool operator==(const TextureData&, const TextureData&) = default;
 };
 
+// ---- part boxes -----------------------------------------------------------
+// Per geometry, up to kMaxParts boxes in its local frame that together hold
+// every triangle whole (each the box of one group of triangles). An object
+// whose box would show is culled when none of its parts can (client.cpp),
+// which keeps the rectangle it is tested over to where its triangles are.
+// Each part is stored in 8 bits per coordinate, in 255ths of the geometry's
+// box, rounded outward: partBox never gives a box smaller than the part.
+inline constexpr size_t kMaxParts = 8;
+struct GeometryParts {
+  Box3d box;  // the geometry's box, local frame; float values (stored as f32)
+  // Per part: lo x, y, z, then hi x, y, z, each in 255ths of `box`'s extent
+  // from box.lo (0 is box.lo, 255 box.hi exactly); lo <= hi on each axis.
+  std::vector<std::array<uint8_t, 6>> parts;
+  friend bool operator==(const GeometryParts&, const GeometryParts&) = default;
+};
+// Part k of `g` (k < g.parts.size()), decoded: within g.box.
+Box3d partBox(const GeometryParts& g, size_t k);
+// `box` (every coordinate a float) and the parts (each within it, at most
+// kMaxParts) quantised so that partBox(result, k) contains parts[k].
+GeometryParts quantizeParts(const Box3d& box, const std::vector<Box3d>& parts);
+
 // ---- manifest -------------------------------------------------------------
 struct FileEntry {
   uint64_t bytes = 0;
@@ -135,6 +158,8 @@ std::vector<uint32_t> decodeOccluders(const std::vector<uint8_t>& file, const st
 // Float32 layout, byte for byte what dmmr has always written.
 std::vector<uint8_t> encodeGeometry(const GeometryData& g, Encoding encoding = Encoding::Float32);
 GeometryData decodeGeometry(const std::vector<uint8_t>& file, const std::string& path);
+std::vector<uint8_t> encodeParts(const std::vector<GeometryParts>& geometries);
+std::vector<GeometryParts> decodeParts(const std::vector<uint8_t>& file, const std::string& path);
 std::vector<uint8_t> encodeTexture(const TextureData& t);
 TextureData decodeTexture(const std::vector<uint8_t>& file, const std::string& path);
 std::string encodeManifest(const Manifest& m);

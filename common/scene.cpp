@@ -42,6 +42,10 @@ void validateReferences(const Scene& s) {
   if (!s.occluders.empty() && s.occluders.back() >= s.objects.size())
     throw Error(fileError(
         o, "names object " + std::to_string(s.occluders.back()) + " beyond the object count"));
+  if (!s.parts.empty() && s.parts.size() != s.manifest.geometries)
+    throw Error(fileError(s.dir + "/parts.bin", "holds " + std::to_string(s.parts.size()) +
+                                                    " geometries, the manifest says " +
+                                                    std::to_string(s.manifest.geometries)));
   if (s.skeleton.empty()) return;  // not loaded
   const std::string k = s.dir + "/skeleton.bin";
   std::vector<uint8_t> seen(s.objects.size(), 0);
@@ -57,7 +61,7 @@ void validateReferences(const Scene& s) {
 
 }  // namespace
 
-Scene loadScene(const std::string& dir, bool with_skeleton) {
+Scene loadScene(const std::string& dir, bool with_skeleton, bool with_parts) {
   Scene s;
   s.dir = dir;
   const std::string mpath = dir + "/manifest.json";
@@ -68,6 +72,8 @@ Scene loadScene(const std::string& dir, bool with_skeleton) {
     s.skeleton = decodeSkeleton(readChecked(s, "skeleton.bin"), dir + "/skeleton.bin");
   s.objects = decodeBounds(readChecked(s, "bounds.bin"), dir + "/bounds.bin");
   s.occluders = decodeOccluders(readChecked(s, "occluders.bin"), dir + "/occluders.bin");
+  if (with_parts && s.manifest.files.count("parts.bin"))
+    s.parts = decodeParts(readChecked(s, "parts.bin"), dir + "/parts.bin");
   validateReferences(s);
   return s;
 }

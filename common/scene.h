@@ -16,14 +16,19 @@ struct Scene {
   std::vector<SkeletonNode> skeleton;
   std::vector<ObjectBounds> objects;
   std::vector<uint32_t> occluders;
+  // Per geometry (loaded for the clients' culling only; empty when not
+  // loaded, or for a scene preprocessed before part boxes).
+  std::vector<GeometryParts> parts;
 };
 
 // Reads manifest, skeleton, bounds and occluders; checks each file's size and
 // CRC against the manifest and the references between them (object and
 // geometry indices in range, counts equal to the manifest's). Throws Error
 // naming the file and the problem.
-// Clients pass with_skeleton = false: they never traverse it.
-Scene loadScene(const std::string& dir, bool with_skeleton = true);
+// Clients pass with_skeleton = false (they never traverse it) and
+// with_parts = true (their occlusion tests use them); parts.bin is read when
+// the manifest lists it.
+Scene loadScene(const std::string& dir, bool with_skeleton = true, bool with_parts = false);
 
 // Reads one geometry (or texture) file, checked against the manifest and the
 // scene's texture count. Throws Error naming the file.

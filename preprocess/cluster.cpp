@@ -71,4 +71,22 @@ std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size
   return out;
 }
 
+std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const uint32_t* indices,
+                             size_t index_count, size_t max_parts) {
+  if (max_parts == 0) throw std::invalid_argument("partBoxes: max_parts is 0");
+  size_t n = index_count / 3;
+  std::vector<Box3d> boxes;
+  for (const auto& tris : clusterTriangles(positions, vertex_count, indices, index_count,
+                                           std::max<size_t>(1, (n + max_parts - 1) / max_parts))) {
+    Box3d b;
+    for (uint32_t t : tris)
+      for (size_t c = 0; c < 3; ++c) {
+        const float* p = positions + 3 * size_t(indices[3 * size_t(t) + c]);
+        b.expand(Vec3d{p[0], p[1], p[2]});
+      }
+    boxes.push_back(b);
+  }
+  return boxes;
+}
+
 }  // namespace dmmr

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "math.h"
+
 namespace dmmr {
 
 // Splits a triangle list into clusters of at most `max_triangles` triangles
@@ -31,5 +33,13 @@ namespace dmmr {
 std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size_t vertex_count,
                                                     const uint32_t* indices, size_t index_count,
                                                     size_t max_triangles);
+
+// The part boxes of a triangle list (formats.h, GeometryParts): the boxes
+// of clusterTriangles' clusters of ceil(triangles / max_parts) triangles, in
+// cluster order. Every triangle lies whole (all three corners) in one of
+// them; there are at most max_parts (>= 1), none for an empty list. Same
+// inputs and exceptions as clusterTriangles.
+std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const uint32_t* indices,
+                             size_t index_count, size_t max_parts);
 
 }  // namespace dmmr

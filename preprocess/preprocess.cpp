@@ -147,6 +147,9 @@ bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData*
   return true;
 }
 
+// Geometries of fewer triangles get no part boxes.
+constexpr uint64_t kMinPartTriangles = 16;
+
 struct GeometryInfo {
   Vec3d center;   // local offset folded into each instance's transform
   Box3d box;      // bounds of the recentred positions
@@ -204,6 +207,7 @@ class SceneWriter {
   std::vector<SkeletonNode> skeleton_;
   std::vector<ObjectBounds> objects_;
   std::vector<GeometryInfo> geometries_;
+  std::vector<GeometryParts> parts_;  // per geometry
   std::map<std::tuple<const osg::Node*, const osg::Material*, const osg::Texture2D*>, MeshInfo>
       geometry_index_;
   Box3d scene_box_;  // of whole meshes: clustering leaves the default near plane as it was
@@ -408,6 +412,13 @@ uint32_t SceneWriter::addGeometry(GeometryData g, const Vec3d& center) {
   }
   info.radius = std::sqrt(r2) * (1 + 1e-12);
   info.triangles = g.triangleCount();
+  // Part boxes where a mesh has triangles enough to have a shape its box
+  // misses (an elbow, a rotated run); below that the box is the test.
+  std::vector<Box3d> parts;
+  if (info.triangles >= kMinPartTriangles)
+    parts = partBoxes(g.positions.data(), g.vertexCount(), g.indices.data(), g.indices.size(),
+                      kMaxParts);
+  parts_.push_back(quantizeParts(info.box, parts));
   addLevelOfDetail(&g);
   uint32_t index = uint32_t(geometries_.size());
   geometries_.push_back(info);
@@ -577,6 +588,7 @@ void SceneWriter::finish(PreprocessStats* stats) {
   writeFile("skeleton.bin", encodeSkeleton(skeleton_));
   writeFile("bounds.bin", encodeBounds(objects_));
   writeFile("occluders.bin", encodeOccluders(occluders));
+  writeFile("parts.bin", encodeParts(parts_));
   manifest_.objects = objects_.size();
   manifest_.geometries = geometries_.size();
   manifest_.occluders = occluders.size();

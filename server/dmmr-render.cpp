@@ -74,6 +74,12 @@ int main(int argc, char** argv) {
                  "new camera, all but hides are not drawn first but tested) or off (the "
                  "default); never changes a pixel")
       ->check(CLI::IsMember({"on", "off"}));
+  std::string partBoxes = "on";
+  app.add_option("--part-boxes", partBoxes,
+                 "depth-pyramid tests: on (an object whose box passes is tested again by the "
+                 "preprocessor's part boxes; the default) or off (its box alone); never "
+                 "changes a pixel")
+      ->check(CLI::IsMember({"on", "off"}));
   std::string weights = "visible";
   app.add_option("--weights", weights,
                  "division weights: visible (triangles drawn lately), fitted (a cost model and "
@@ -211,6 +217,7 @@ int main(int argc, char** argv) {
                                            : dmmr::StageMode::Split;
   c.visibility.governor = costModel == "on";
   c.visibility.predict = predict == "on";
+  c.visibility.part_boxes = partBoxes == "on";
   if (c.visibility.stages != dmmr::StageMode::Split &&
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)

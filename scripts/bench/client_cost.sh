@@ -41,6 +41,7 @@ configs=(  # label|dmmr-render options; pyramid-split is the default
   "pyramid-fused|--visibility pyramid --stages fused"
   "pyramid-fused-nocost|--visibility pyramid --stages fused --cost-model off"
   "pyramid-fused-predict|--visibility pyramid --stages fused --predict on"
+  "pyramid-fused-noparts|--visibility pyramid --stages fused --part-boxes off"
   "auto|--stages auto"
   "off|--visibility off"
 )

@@ -187,6 +187,10 @@ TEST(ScreenBound, HoldsEveryPointOfTheBox) {
     Vec3d c = cam.eye + dir * dist;
     Box3d box{c - Vec3d{size, size * 0.5, size * 0.3}, c + Vec3d{size * 0.7, size, size * 0.2}};
     ScreenBound b = screenBound(box, cam, w, h);
+    ScreenBound rect = screenRect(box, cam, w, h), planeless = b;
+    planeless.has_planes = false;
+    planeless.planes = {};
+    ASSERT_EQ(rect, planeless);  // the same bound without its planes
     if (b.reaches_near) {
       ++nearPlane;
       // Some corner really is at or before the near plane.
@@ -243,6 +247,85 @@ TEST(ScreenBound, HoldsEveryPointOfTheBox) {
   EXPECT_GT(bounded, 1500u);
   EXPECT_GT(nearPlane, 20u);
   EXPECT_GT(subPixel, 100u);
+}
+
+// A part's bound is its rectangle within the object's, with the object's
+// depth bound at every pixel (the depth clamp's guarantee, not the part's):
+// so a pyramid that hides every part's bound has, at every pixel of every
+// part's rectangle, depth strictly nearer than the object's own bound there.
+TEST(PartBound, HidesOnlyWherePixelsAreNearerThanTheObjectsBound) {
+  std::mt19937 rng(17);
+  size_t culled = 0, kept = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    int fw = std::uniform_int_distribution<int>(1, 160)(rng);
+    int fh = std::uniform_int_distribution<int>(1, 160)(rng);
+    Rect region{0, 0, fw, fh};
+    std::vector<float> d = randomDepth(rng, fw, fh);
+    DepthPyramid p;
+    p.build(d.data(), region);
+    for (int k = 0; k < 40; ++k) {
+      ScreenBound ob = randomBound(rng, fw, fh);
+      std::vector<ScreenBound> parts;
+      for (int n = std::uniform_int_distribution<int>(1, 8)(rng); n > 0; --n) {
+        ScreenBound pb = randomBound(rng, fw, fh);  // depth ignored: the object's is taken
+        pb.nearest = 2;
+        pb.has_planes = false;
+        parts.push_back(partBound(ob, pb));
+        const ScreenBound& b = parts.back();
+        ASSERT_EQ(b.nearest, ob.nearest);
+        ASSERT_EQ(b.planes, ob.planes);
+        if (!b.empty()) {
+          ASSERT_TRUE(b.x0 >= ob.x0 && b.x1 <= ob.x1 && b.y0 >= ob.y0 && b.y1 <= ob.y1) << b;
+          ASSERT_TRUE(b.x0 >= pb.x0 && b.x1 <= pb.x1 && b.y0 >= pb.y0 && b.y1 <= pb.y1) << b;
+        }
+      }
+      bool all_hidden = std::all_of(parts.begin(), parts.end(),
+                                    [&](const ScreenBound& b) { return p.hides(b, 1 << 30); });
+      bool expected = std::all_of(parts.begin(), parts.end(), [&](const ScreenBound& b) {
+        return hiddenByPixels(d, region, b);
+      });
+      ASSERT_EQ(all_hidden, expected);
+      (all_hidden ? culled : kept)++;
+    }
+  }
+  EXPECT_GT(culled, 500u);
+  EXPECT_GT(kept, 500u);
+  // Either reaching the near plane: the result does.
+  ScreenBound a{false, 1, 2, 3, 4, 0.25}, n;
+  n.reaches_near = true;
+  EXPECT_TRUE(partBound(a, n).reaches_near);
+  EXPECT_TRUE(partBound(n, a).reaches_near);
+}
+
+// A part widened by the object's margins: inside the object's query box,
+// holding the part widened by at least what that box adds on each side.
+TEST(QueryPartBounds, WidensThePartByTheObjectsMargins) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int trial = 0; trial < 1000; ++trial) {
+    double scale = std::pow(10.0, std::uniform_real_distribution<double>(-1, 4)(rng));
+    Camera cam = randomCamera(rng, scale);
+    if (trial % 2) cam.eye = cam.eye + Vec3d{1e6, -2e6, 5e5};
+    Vec3d c = cam.eye + Vec3d{u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5} * (4 * scale);
+    Box3d box{c, c + Vec3d{u(rng), u(rng), u(rng)} * scale};
+    Box3d part;
+    for (int a = 0; a < 3; ++a) {
+      double x = box.lo[a] + (box.hi[a] - box.lo[a]) * u(rng);
+      double y = box.lo[a] + (box.hi[a] - box.lo[a]) * u(rng);
+      part.lo[a] = std::min(x, y);
+      part.hi[a] = std::max(x, y);
+    }
+    Box3d q = queryBoxBounds(box, cam, 512), pq = queryPartBounds(part, box, q);
+    for (int a = 0; a < 3; ++a) {
+      ASSERT_GE(pq.lo[a], q.lo[a] - 1e-9 * scale);
+      ASSERT_LE(pq.hi[a], q.hi[a] + 1e-9 * scale);
+      double lo_margin = box.lo[a] - q.lo[a], hi_margin = q.hi[a] - box.hi[a];
+      ASSERT_GT(lo_margin, 0);
+      ASSERT_GT(hi_margin, 0);
+      ASSERT_NEAR(part.lo[a] - pq.lo[a], lo_margin, 1e-9 * (scale + std::abs(box.lo[a])));
+      ASSERT_NEAR(pq.hi[a] - part.hi[a], hi_margin, 1e-9 * (scale + std::abs(box.hi[a])));
+    }
+  }
 }
 
 TEST(ScreenBound, UniteCoversBoth) {

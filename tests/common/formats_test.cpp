@@ -614,6 +614,143 @@ TEST(OccludersFormat, RejectsHostileCountWithoutAllocating) {
   expectFailsWithoutHugeAllocation(patched(f, 0, {0xFF, 0xFF, 0xFF, 0xFF}), decodeOccl);
 }
 
+// ---- part boxes --------------------------------------------------------------------
+
+auto decodePartsFile = [](const Bytes& f, const std::string& p) { return decodeParts(f, p); };
+
+std::vector<GeometryParts> sampleParts() {
+  GeometryParts a;
+  a.box = {{-1, -2, -3}, {1, 2, 3}};
+  a.parts = {{0, 0, 0, 255, 255, 255}, {10, 20, 30, 40, 50, 60}};
+  GeometryParts b;  // no parts (a small mesh): its box is the test
+  b.box = {{0.5, 0.5, 0.5}, {0.5, 0.75, 1}};
+  return {a, b};
+}
+
+TEST(PartsFormat, RoundTrip) {
+  EXPECT_EQ(decodeParts(encodeParts({}), "p.bin"), std::vector<GeometryParts>{});
+  EXPECT_EQ(decodeParts(encodeParts(sampleParts()), "p.bin"), sampleParts());
+  GeometryParts full;
+  full.box = {{0, 0, 0}, {1, 1, 1}};
+  full.parts.assign(kMaxParts, {1, 2, 3, 4, 5, 6});
+  EXPECT_EQ(decodeParts(encodeParts({full}), "p.bin"), std::vector<GeometryParts>{full});
+}
+
+TEST(PartsFormat, PayloadLayoutMatchesHandEncoding) {
+  GeometryParts g;
+  g.box = {{1, 0, 0}, {2, 0, 0}};
+  g.parts = {{1, 2, 3, 4, 5, 6}};
+  Bytes f = encodeParts({g});
+  EXPECT_EQ(std::string(f.begin(), f.begin() + 8), "DMMRPART");
+  // Count, box as f32 (1.0f = 0x3F800000, 2.0f = 0x40000000), part count, part.
+  EXPECT_EQ(payloadOf(f), (Bytes{1, 0,    0, 0, 0, 0, 0x80, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                                 0, 0x40, 0, 0, 0, 0, 0,    0,    0, 0, 1, 1, 2, 3, 4, 5, 6}));
+}
+
+TEST(PartsFormat, RejectsWrongMagicAndUnknownVersion) {
+  EXPECT_DMMR_ERROR(decodeParts(encodeOccluders({1}), "p.bin"), "p.bin", "magic");
+  Bytes f = encodeParts(sampleParts());
+  f[8] = 2;
+  recrc(f);
+  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin", "version 2");
+}
+
+TEST(PartsFormat, RejectsEveryTruncation) {
+  expectEveryTruncationThrows(encodeParts(sampleParts()), decodePartsFile);
+}
+
+TEST(PartsFormat, RejectsTrailingBytes) {
+  Bytes f = encodeParts(sampleParts());
+  EXPECT_DMMR_ERROR(decodeParts(patched(f, 0, {1}), "p.bin"), "p.bin", "trailing");
+  f.push_back(0);
+  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin", "trailing");
+}
+
+TEST(PartsFormat, RejectsChecksumMismatch) {
+  Bytes f = encodeParts(sampleParts());
+  f[24] ^= 1;
+  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin", "checksum");
+}
+
+TEST(PartsFormat, RejectsMoreThanMaxParts) {
+  // The first geometry's part count sits after the count and its box.
+  Bytes f = encodeParts(sampleParts());
+  EXPECT_DMMR_ERROR(decodeParts(patched(f, 4 + 24, {uint8_t(kMaxParts + 1)}), "p.bin"), "p.bin",
+                    "geometry 0: 9 parts");
+}
+
+TEST(PartsFormat, RejectsAPartWithMinAboveMax) {
+  auto g = sampleParts();
+  g[0].parts[1] = {10, 70, 30, 40, 50, 60};
+  EXPECT_DMMR_ERROR(decodeParts(encodeParts(g), "p.bin"), "p.bin", "geometry 0: a part");
+}
+
+TEST(PartsFormat, RejectsBadBoxes) {
+  auto g = sampleParts();
+  g[1].box = {{0, 1, 0}, {1, 0, 1}};
+  EXPECT_DMMR_ERROR(decodeParts(encodeParts(g), "p.bin"), "p.bin", "geometry 1: box has min");
+  Bytes f = encodeParts(sampleParts());  // geometry 0's lo.x a NaN (0x7FC00000)
+  EXPECT_DMMR_ERROR(decodeParts(patched(f, 4, {0, 0, 0xC0, 0x7F}), "p.bin"), "p.bin",
+                    "geometry 0: box not finite");
+}
+
+TEST(PartsFormat, RejectsHostileCountWithoutAllocating) {
+  Bytes f = encodeParts(sampleParts());
+  expectFailsWithoutHugeAllocation(patched(f, 0, {0xFF, 0xFF, 0xFF, 0xFF}), decodePartsFile);
+}
+
+// Quantised parts decode to boxes holding the originals and inside the
+// geometry's box: random boxes near and far from the origin, flat and
+// point-like ones, parts touching the box's faces.
+TEST(PartsFormat, QuantizedPartsHoldTheirOriginals) {
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int trial = 0; trial < 2000; ++trial) {
+    double offset = trial % 3 == 0 ? 0 : (trial % 3 == 1 ? 1e6 : -3e7);
+    double scale = std::pow(10.0, int(rng() % 9) - 4);
+    Box3d box;
+    for (int a = 0; a < 3; ++a) {
+      float lo = float(offset + (u(rng) - 0.5) * scale);
+      float ext = (rng() % 5 == 0) ? 0.f : float(u(rng) * scale);  // flat on some axes
+      box.lo[a] = lo;
+      box.hi[a] = double(lo + ext);
+    }
+    std::vector<Box3d> parts(rng() % (kMaxParts + 1));
+    for (Box3d& p : parts)
+      for (int a = 0; a < 3; ++a) {
+        double x = box.lo[a] + (box.hi[a] - box.lo[a]) * u(rng);
+        double y = box.lo[a] + (box.hi[a] - box.lo[a]) * u(rng);
+        if (rng() % 4 == 0) x = box.lo[a];
+        if (rng() % 4 == 0) y = box.hi[a];
+        p.lo[a] = std::min(x, y);
+        p.hi[a] = std::max(x, y);
+      }
+    GeometryParts q = quantizeParts(box, parts);
+    ASSERT_EQ(decodeParts(encodeParts({q}), "p.bin"), std::vector<GeometryParts>{q});
+    ASSERT_EQ(q.parts.size(), parts.size());
+    for (size_t k = 0; k < parts.size(); ++k) {
+      Box3d d = partBox(q, k);
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_LE(d.lo[a], parts[k].lo[a]) << "trial " << trial << " part " << k << " axis " << a;
+        ASSERT_GE(d.hi[a], parts[k].hi[a]) << "trial " << trial << " part " << k << " axis " << a;
+        ASSERT_GE(d.lo[a], box.lo[a]);
+        ASSERT_LE(d.hi[a], box.hi[a]);
+      }
+    }
+  }
+}
+
+TEST(PartsFormat, QuantizationKeepsPartsSmall) {
+  // A part an eighth of the box decodes to within 1/255 of it on each side.
+  Box3d box{{0, 0, 0}, {8, 8, 8}};
+  Box3d part{{1, 2, 3}, {2, 3, 4}};
+  Box3d d = partBox(quantizeParts(box, {part}), 0);
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_GT(d.lo[a], part.lo[a] - 8.0 / 255 - 1e-12);
+    EXPECT_LT(d.hi[a], part.hi[a] + 8.0 / 255 + 1e-12);
+  }
+}
+
 // ---- geometry ----------------------------------------------------------------------
 
 struct Attribs {
@@ -1342,6 +1479,28 @@ TEST_F(SceneTest, RejectsObjectCountDifferingFromManifest) {
   manifest_.objects = 3;
   writeManifest();
   EXPECT_DMMR_ERROR(loadScene(dir_), path("bounds.bin"), "manifest says 3");
+}
+
+TEST_F(SceneTest, LoadsPartsOnlyWhenAskedAndListed) {
+  write();
+  EXPECT_TRUE(loadScene(dir_, true, true).parts.empty());  // a scene from before part boxes
+  GeometryParts g;
+  g.box = {{0, 0, 0}, {1, 1, 0}};
+  g.parts = {{0, 0, 0, 128, 255, 0}, {100, 0, 0, 255, 255, 0}};
+  put("parts.bin", encodeParts({g}));
+  writeManifest();
+  EXPECT_TRUE(loadScene(dir_).parts.empty());  // the server's load: not read
+  EXPECT_EQ(loadScene(dir_, false, true).parts, std::vector<GeometryParts>{g});
+}
+
+TEST_F(SceneTest, RejectsPartsForAnotherGeometryCount) {
+  write();
+  GeometryParts g;
+  g.box = {{0, 0, 0}, {1, 1, 0}};
+  put("parts.bin", encodeParts({g, g}));
+  writeManifest();
+  EXPECT_DMMR_ERROR(loadScene(dir_, false, true), path("parts.bin"),
+                    "holds 2 geometries, the manifest says 1");
 }
 
 TEST_F(SceneTest, RejectsObjectNamingOutOfRangeGeometry) {

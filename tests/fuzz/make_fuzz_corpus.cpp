@@ -95,6 +95,15 @@ int main(int argc, char** argv) {
   put("occluders", "empty", encodeOccluders({}));
   put("occluders", "three", encodeOccluders({1, 5, 9}));
 
+  {
+    GeometryParts a, b;
+    a.box = {{-1, -2, -3}, {1, 2, 3}};
+    a.parts = {{0, 0, 0, 255, 255, 255}, {10, 20, 30, 40, 50, 60}};
+    b.box = {{0.5, 0.5, 0.5}, {0.5, 0.75, 1}};
+    put("parts", "empty", encodeParts({}));
+    put("parts", "two", encodeParts({a, b}));
+  }
+
   put("geometry", "plain", encodeGeometry(triangles(false, false, false, 1)));
   put("geometry", "all_attributes", encodeGeometry(triangles(true, true, true, 2)));
   put("geometry", "normals_texcoords", encodeGeometry(triangles(true, false, true, 3)));

@@ -177,3 +177,64 @@ TEST(ClusterTriangles, RejectsBadInput) {
 }
 
 }  // namespace
+
+// ---- partBoxes ----
+
+// Every triangle lies whole in one of at most max_parts boxes, and the
+// boxes are those of clusterTriangles' clusters (so no looser than them).
+TEST(PartBoxes, EveryTriangleLiesWholeInAPart) {
+  for (uint64_t seed = 1; seed <= 20; ++seed)
+    for (size_t n : {size_t(1), size_t(7), size_t(8), size_t(9), size_t(100), size_t(1001)})
+      for (size_t max : {size_t(1), size_t(3), size_t(8)}) {
+        Mesh m = randomMesh(seed, n, seed % 2 == 0);
+        std::vector<Box3d> parts = partBoxes(m.positions.data(), m.positions.size() / 3,
+                                             m.indices.data(), m.indices.size(), max);
+        auto clusters = cluster(m, (n + max - 1) / max);
+        ASSERT_EQ(parts.size(), clusters.size());
+        ASSERT_LE(parts.size(), max);
+        for (size_t k = 0; k < clusters.size(); ++k)
+          for (uint32_t t : clusters[k])
+            for (int c = 0; c < 3; ++c) {
+              const float* p = &m.positions[3 * size_t(m.indices[3 * size_t(t) + size_t(c)])];
+              for (int a = 0; a < 3; ++a) {
+                ASSERT_LE(parts[k].lo[a], double(p[a])) << "seed " << seed << " n " << n;
+                ASSERT_GE(parts[k].hi[a], double(p[a])) << "seed " << seed << " n " << n;
+              }
+            }
+      }
+}
+
+// An L of two thin bars: two parts leave its empty corner out.
+TEST(PartBoxes, AnLShapeLeavesItsCornerOut) {
+  Mesh m;
+  auto bar = [&](float x0, float y0, float x1, float y1) {
+    for (int t = 0; t < 8; ++t) {  // 8 slivers along the bar
+      float a = float(t) / 8, b = float(t + 1) / 8;
+      uint32_t v = uint32_t(m.positions.size() / 3);
+      for (float f : {a, b, b})
+        m.positions.insert(m.positions.end(), {x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, 0});
+      m.positions[m.positions.size() - 2] += 0.01f;  // give the last corner some width
+      m.indices.insert(m.indices.end(), {v, v + 1, v + 2});
+    }
+  };
+  bar(0, 0, 1, 0);
+  bar(0, 0.02f, 0, 1);
+  std::vector<Box3d> parts =
+      partBoxes(m.positions.data(), m.positions.size() / 3, m.indices.data(), m.indices.size(), 2);
+  ASSERT_EQ(parts.size(), 2u);
+  for (const Box3d& p : parts) {  // neither holds the corner (0.5, 0.5)
+    bool holds = p.lo.x <= 0.5 && p.hi.x >= 0.5 && p.lo.y <= 0.5 && p.hi.y >= 0.5;
+    EXPECT_FALSE(holds) << p.lo.x << " " << p.lo.y << " " << p.hi.x << " " << p.hi.y;
+  }
+}
+
+TEST(PartBoxes, EmptyListHasNoPartsAndBadInputThrows) {
+  Mesh m = randomMesh(3, 4);
+  EXPECT_TRUE(
+      partBoxes(m.positions.data(), m.positions.size() / 3, m.indices.data(), 0, 8).empty());
+  EXPECT_THROW(
+      partBoxes(m.positions.data(), m.positions.size() / 3, m.indices.data(), m.indices.size(), 0),
+      std::invalid_argument);
+  EXPECT_THROW(partBoxes(m.positions.data(), 1, m.indices.data(), m.indices.size(), 8),
+               std::invalid_argument);
+}
