@@ -15,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -252,10 +253,7 @@ class Culler {
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
       late_ms = msSince(tl);
-      if (fresh.size() >= opts_.second_pass_min) {
-        passed = testPyramid(passed, job, &d);
-        std::sort(passed.begin(), passed.end());
-      }
+      if (fresh.size() >= opts_.second_pass_min) passed = retestWhereDrawn(passed, fresh, job, &d);
       d.prepare_ms += msSince(t0) - d.retrieve_ms - late_ms;
       return fusedDecision(std::move(d), plan, first, fresh, passed);
     }
@@ -272,8 +270,7 @@ class Culler {
       gl_.renderer.maskColor(true);
       for (uint32_t o : objects) drawDepth(o);
       gl_.renderer.maskColor(false);
-      passed = testPyramid(passed, job, &d);
-      std::sort(passed.begin(), passed.end());
+      passed = retestWhereDrawn(passed, objects, job, &d);
       fresh = newOnes();
     };
     // Many new objects: after their depth pass, try drawing them in colour
@@ -385,6 +382,14 @@ class Culler {
 
  private:
   static constexpr size_t kMaxRedrawRects = 16;
+  // Objects of fewer triangles are not tested by their parts: a part test
+  // costs about the same for any object, culling saves its triangles
+  // (plants8 at 512x384: testing every object's parts cost 1 ms a frame of
+  // tests for 3.6% fewer triangles; from 256 on, plant10m keeps its 1.48;
+  // docs/benchmarks.md, "Part boxes").
+  static constexpr uint64_t kMinPartTestTriangles = 256;
+  // Cells of 16 x 16 pixels for retestWhereDrawn.
+  static constexpr int kCoverageShift = 4;
   // The prediction works on texels of 4x4 pixels (0.5 ms a 512x512 frame,
   // against 1.6 ms at 2x2 for the same triangles drawn on plant10m), and
   // leaves out of step 1 an object whose box shows at no more than this
@@ -580,10 +585,9 @@ class Culler {
     }
     if (bound_stamp_[object] == stamp_) return bound_cache_[object];
     const Box3d& box = scene_.objects[object].box;
-    const Renderer& r = gl_.renderer;
     ScreenBound b{true};  // no box, no bound: it shows
     if (box.valid())
-      b = screenBound(queryBoxBounds(box, camera, r.height()), camera, r.width(), r.height());
+      b = projector(camera).bound(queryBoxBounds(box, camera, gl_.renderer.height()));
     bound_stamp_[object] = stamp_;
     bound_cache_[object] = b;
     return b;
@@ -592,19 +596,26 @@ class Culler {
   // Whether no part box of the object (formats.h, GeometryParts) can show
   // against the pyramid, `ob` being its own bound: each part's rectangle
   // with the object's depth bound (partBound; docs/architecture.md, "Part
-  // boxes"). False when the scene has no parts for it.
-  bool partsHide(uint32_t object, const Camera& camera, const ScreenBound& ob) const {
+  // boxes"). False when the scene has no parts for it. `seen`: a pixel where
+  // the pyramid found `ob` not hidden (or -1, -1): a part whose rectangle
+  // holds it shows there too, untested.
+  bool partsHide(uint32_t object, const Camera& camera, const ScreenBound& ob,
+                 std::pair<int, int> seen) const {
     if (!opts_.part_boxes || scene_.parts.empty() || ob.reaches_near) return false;
     const ObjectBounds& o = scene_.objects[object];
     const GeometryParts& g = scene_.parts[o.geometry];
-    if (g.parts.empty() || !o.box.valid()) return false;
+    if (g.parts.empty() || !o.box.valid() || o.weight < kMinPartTestTriangles) return false;
     const Renderer& r = gl_.renderer;
     Box3d q = queryBoxBounds(o.box, camera, r.height());
+    std::array<ScreenBound, kMaxParts> parts;
+    auto [sx, sy] = seen;
     for (size_t k = 0; k < g.parts.size(); ++k) {
       Box3d part = queryPartBounds(transformBox(o.transform, partBox(g, k)), o.box, q);
-      if (!pyramid_.hides(partBound(ob, screenRect(part, camera, r.width(), r.height()))))
-        return false;
+      const ScreenBound& p = parts[k] = partBound(ob, projector(camera).rect(part));
+      if (p.reaches_near || (sx >= p.x0 && sx <= p.x1 && sy >= p.y0 && sy <= p.y1)) return false;
     }
+    for (size_t k = 0; k < g.parts.size(); ++k)
+      if (!pyramid_.hides(parts[k])) return false;
     return true;
   }
 
@@ -623,6 +634,13 @@ class Culler {
       std::fill(bound_stamp_.begin(), bound_stamp_.end(), 0);
       stamp_ = 1;
     }
+    projector_.reset();
+  }
+
+  // The job's projection (its camera; newJob drops it).
+  const ScreenProjector& projector(const Camera& camera) const {
+    if (!projector_) projector_.emplace(camera, gl_.renderer.width(), gl_.renderer.height());
+    return *projector_;
   }
 
   // The pixels of the region the object may cover.
@@ -633,6 +651,26 @@ class Culler {
     r.w = std::min(b.x1 + 1, job.region.x1()) - r.x;
     r.h = std::min(b.y1 + 1, job.region.y1()) - r.y;
     return r.empty() ? Rect{} : r;
+  }
+
+  // testPyramid again for `passed` (ascending, objects that passed before
+  // `drawn` went into depth): only those whose footprint shares a cell with
+  // a footprint of `drawn` are tested, since the depth under the others is
+  // what they passed against. The depth is read back in any case (the
+  // prediction and the EQUAL pass use the latest). Returns what passes,
+  // ascending.
+  std::vector<uint32_t> retestWhereDrawn(const std::vector<uint32_t>& passed,
+                                         const std::vector<uint32_t>& drawn, const FrameJob& job,
+                                         Decision* d) {
+    CellCoverage written(job.region, kCoverageShift);
+    for (uint32_t o : drawn) written.mark(footprint(o, job));
+    written.finish();
+    std::vector<uint32_t> again, out;
+    for (uint32_t o : passed) (written.meets(footprint(o, job)) ? again : out).push_back(o);
+    std::vector<uint32_t> still = testPyramid(again, job, d);
+    out.insert(out.end(), still.begin(), still.end());
+    std::sort(out.begin(), out.end());
+    return out;
   }
 
   // Reads the depth drawn so far back once and tests `candidates`
@@ -663,9 +701,10 @@ class Culler {
           ScreenBound u = bounds_[b];
           for (size_t k = b + 1; k < e; ++k) u = unite(u, bounds_[k]);
           ++d->tested;
-          if (pyramid_.hides(u)) continue;
+          std::pair<int, int> seen{-1, -1};
+          if (pyramid_.hides(u, DepthPyramid::kDefaultBudget, &seen)) continue;
           if (e - b == 1) {
-            if (!partsHide(candidates[b], job.camera, u)) passed.push_back(candidates[b]);
+            if (!partsHide(candidates[b], job.camera, u, seen)) passed.push_back(candidates[b]);
           } else
             next.push_back({b, e});
         }
@@ -773,6 +812,7 @@ class Culler {
   mutable std::vector<ScreenBound> bound_cache_;
   mutable std::vector<uint32_t> bound_stamp_;
   uint32_t stamp_ = 1;
+  mutable std::optional<ScreenProjector> projector_;  // projector(), for this job
   enum class RedrawHook { None, Always, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
   std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
   GLuint count_query_ = 0;          // colorWhereEqual's GL_SAMPLES_PASSED

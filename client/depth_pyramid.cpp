@@ -14,32 +14,66 @@ std::ostream& operator<<(std::ostream& os, const ScreenBound& b) {
 }
 
 ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int height) {
-  ScreenBound b = screenRect(box, camera, width, height);
+  return ScreenProjector(camera, width, height).bound(box);
+}
+
+ScreenBound screenRect(const Box3d& box, const Camera& camera, int width, int height) {
+  return ScreenProjector(camera, width, height).rect(box);
+}
+
+ScreenProjector::ScreenProjector(const Camera& camera, int width, int height)
+    : camera_(camera),
+      view_(viewRotation(camera)),
+      camera_to_world_(Mat4d::rotation(camera.rotation)),
+      tan_half_fovy_(std::tan(camera.fovy_deg * M_PI / 360.0)),
+      f_(1.0 / tan_half_fovy_),
+      fx_(f_ / camera.aspect),
+      width_(width),
+      height_(height) {
+  DMMR_CHECK(width > 0 && height > 0);
+}
+
+ScreenBound ScreenProjector::bound(const Box3d& box) const {
+  ScreenBound b = rect(box);
   if (b.reaches_near) return b;
   // The entry-depth planes in pixel indices: ndc = (i + 0.5) * 2 / n - 1.
-  EntryDepthPlanes p = entryDepthPlanes(box, camera);
+  EntryDepthPlanes p = entryDepthPlanes(box, camera_, camera_to_world_, tan_half_fovy_);
   b.has_planes = true;
   for (size_t i = 0; i < 3; ++i) {
     const auto& k = p.k[i];
-    double sx = 2.0 / width, sy = 2.0 / height;
+    double sx = 2.0 / width_, sy = 2.0 / height_;
     b.planes[i] = {k[0] * sx, k[1] * sy, k[0] * (0.5 * sx - 1) + k[1] * (0.5 * sy - 1) + k[2]};
   }
   return b;
 }
 
-ScreenBound screenRect(const Box3d& box, const Camera& camera, int width, int height) {
-  DMMR_CHECK(box.valid() && width > 0 && height > 0);
-  Mat4d view = viewRotation(camera);
-  double f = 1.0 / std::tan(camera.fovy_deg * M_PI / 360.0), fx = f / camera.aspect;
+ScreenBound ScreenProjector::rect(const Box3d& box) const {
+  DMMR_CHECK(box.valid());
+  const Camera& camera = camera_;
+  const int width = width_, height = height_;
+  const double f = f_, fx = fx_;
   ScreenBound b;
   double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
-  double nearestDist = INFINITY;
+  // The corners in eye space: the centre's image plus or minus the images of
+  // the three half extents (columns of the rotation, scaled).
+  // Relative to the eye before halving: a box far from the origin keeps its
+  // digits (box.center() would round at the coordinates' magnitude).
+  Vec3d rlo = box.lo - camera.eye, rhi = box.hi - camera.eye;
+  Vec3d c = view_.transformVector((rlo + rhi) * 0.5), h = (rhi - rlo) * 0.5;
+  Vec3d ax{view_.at(0, 0) * h.x, view_.at(1, 0) * h.x, view_.at(2, 0) * h.x};
+  Vec3d ay{view_.at(0, 1) * h.y, view_.at(1, 1) * h.y, view_.at(2, 1) * h.y};
+  Vec3d az{view_.at(0, 2) * h.z, view_.at(1, 2) * h.z, view_.at(2, 2) * h.z};
+  // The box is convex: all corners beyond the near plane put all of it
+  // there, and its projection is the hull of the corners' projections.
+  double nearestDist = -c.z - std::abs(ax.z) - std::abs(ay.z) - std::abs(az.z);
+  if (!(nearestDist > camera.near)) {
+    b.reaches_near = true;
+    return b;
+  }
   for (int i = 0; i < 8; ++i) {
-    Vec3d e = view.transformVector(box.corner(i) - camera.eye);
+    Vec3d e = c + ((i & 1) ? ax : -ax) + ((i & 2) ? ay : -ay) + ((i & 4) ? az : -az);
     double dist = -e.z;
-    // The box is convex: all corners beyond the near plane put all of it
-    // there, and its projection is the hull of the corners' projections.
-    if (!(dist > camera.near)) {
+    if (!(dist > camera.near)) {  // rounding: the sum above may differ in its last bits
       b.reaches_near = true;
       return b;
     }
@@ -144,6 +178,64 @@ std::vector<Rect> coverRects(std::vector<Rect> rects, size_t max) {
   }
 }
 
+CellCoverage::CellCoverage(const Rect& region, int shift) : region_(region), shift_(shift) {
+  DMMR_CHECK(!region.empty() && shift >= 0 && shift < 16);
+  w_ = ((region.w - 1) >> shift) + 1;
+  h_ = ((region.h - 1) >> shift) + 1;
+  sums_.assign(size_t(w_ + 1) * size_t(h_ + 1), 0);
+}
+
+bool CellCoverage::cells(const Rect& r, int* cx0, int* cy0, int* cx1, int* cy1) const {
+  int x0 = std::max(r.x, region_.x), x1 = std::min(r.x1(), region_.x1());
+  int y0 = std::max(r.y, region_.y), y1 = std::min(r.y1(), region_.y1());
+  if (r.empty() || x0 >= x1 || y0 >= y1) return false;
+  *cx0 = (x0 - region_.x) >> shift_;
+  *cx1 = (x1 - 1 - region_.x) >> shift_;
+  *cy0 = (y0 - region_.y) >> shift_;
+  *cy1 = (y1 - 1 - region_.y) >> shift_;
+  return true;
+}
+
+void CellCoverage::mark(const Rect& r) {
+  int x0, y0, x1, y1;
+  if (!cells(r, &x0, &y0, &x1, &y1)) return;
+  auto at = [&](int x, int y) -> int32_t& { return sums_[size_t(y) * size_t(w_ + 1) + size_t(x)]; };
+  at(x0, y0) += 1;
+  at(x1 + 1, y0) -= 1;
+  at(x0, y1 + 1) -= 1;
+  at(x1 + 1, y1 + 1) += 1;
+}
+
+void CellCoverage::finish() {
+  // The difference array summed gives each cell's mark count; marked cells
+  // (count > 0) then become 1, summed again into the corner sums.
+  const size_t stride = size_t(w_ + 1);
+  std::vector<int32_t> marked(size_t(w_) * size_t(h_));
+  std::vector<int32_t> row(size_t(w_ + 1), 0);
+  for (int y = 0; y < h_; ++y) {
+    int32_t run = 0;
+    for (int x = 0; x < w_; ++x) {
+      run += sums_[size_t(y) * stride + size_t(x)];
+      row[size_t(x)] += run;  // column sums of the row-wise sums
+      marked[size_t(y) * size_t(w_) + size_t(x)] = row[size_t(x)] > 0;
+    }
+  }
+  std::fill(sums_.begin(), sums_.end(), 0);
+  for (int y = 0; y < h_; ++y)
+    for (int x = 0; x < w_; ++x)
+      sums_[size_t(y + 1) * stride + size_t(x + 1)] =
+          marked[size_t(y) * size_t(w_) + size_t(x)] + sums_[size_t(y) * stride + size_t(x + 1)] +
+          sums_[size_t(y + 1) * stride + size_t(x)] - sums_[size_t(y) * stride + size_t(x)];
+}
+
+bool CellCoverage::meets(const Rect& r) const {
+  int x0, y0, x1, y1;
+  if (!cells(r, &x0, &y0, &x1, &y1)) return false;
+  const size_t stride = size_t(w_ + 1);
+  auto at = [&](int x, int y) { return sums_[size_t(y) * stride + size_t(x)]; };
+  return at(x1 + 1, y1 + 1) - at(x0, y1 + 1) - at(x1 + 1, y0) + at(x0, y0) > 0;
+}
+
 void DepthPyramid::build(const float* depth, const Rect& region) {
   DMMR_CHECK(!region.empty());
   region_ = region;
@@ -178,14 +270,17 @@ void DepthPyramid::build(const float* depth, const Rect& region) {
 }
 
 bool DepthPyramid::refine(int level, int x, int y, const int rect[4], const ScreenBound& b,
-                          int* budget) const {
+                          int* budget, std::pair<int, int>* witness) const {
   // The texel's pixels within the rectangle, in frame pixels, and the
   // nearest the box can be there.
   int px0 = std::max(x << level, rect[0]), px1 = std::min(((x + 1) << level) - 1, rect[2]);
   int py0 = std::max(y << level, rect[1]), py1 = std::min(((y + 1) << level) - 1, rect[3]);
   double d = b.bound(px0 + region_.x, py0 + region_.y, px1 + region_.x, py1 + region_.y);
   if (double(texel(level, x, y)) > d) return true;
-  if (level == 0) return false;  // a pixel of the rectangle at or behind the box
+  if (level == 0) {  // a pixel of the rectangle at or behind the box
+    if (witness) *witness = {x + region_.x, y + region_.y};
+    return false;
+  }
   if (--*budget < 0) return false;
   int l = level - 1;
   int cx0 = std::max(2 * x, rect[0] >> l), cx1 = std::min(2 * x + 1, rect[2] >> l);
@@ -194,11 +289,11 @@ bool DepthPyramid::refine(int level, int x, int y, const int rect[4], const Scre
   cy1 = std::min(cy1, height(l) - 1);
   for (int cy = cy0; cy <= cy1; ++cy)
     for (int cx = cx0; cx <= cx1; ++cx)
-      if (!refine(l, cx, cy, rect, b, budget)) return false;
+      if (!refine(l, cx, cy, rect, b, budget, witness)) return false;
   return true;
 }
 
-bool DepthPyramid::hides(const ScreenBound& b, int budget) const {
+bool DepthPyramid::hides(const ScreenBound& b, int budget, std::pair<int, int>* witness) const {
   if (b.reaches_near || levels_.empty()) return false;
   if (b.empty()) return true;
   // The rectangle within the region, region-relative.
@@ -213,7 +308,7 @@ bool DepthPyramid::hides(const ScreenBound& b, int budget) const {
     ++level;
   for (int y = rect[1] >> level; y <= rect[3] >> level; ++y)
     for (int x = rect[0] >> level; x <= rect[2] >> level; ++x)
-      if (!refine(level, x, y, rect, b, &budget)) return false;
+      if (!refine(level, x, y, rect, b, &budget, witness)) return false;
   return true;
 }
 

@@ -17,6 +17,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "camera.h"
@@ -59,6 +60,22 @@ ScreenBound screenBound(const Box3d& box, const Camera& camera, int width, int h
 // and `nearest` only, for callers that need no more (partBound).
 ScreenBound screenRect(const Box3d& box, const Camera& camera, int width, int height);
 
+// screenBound and screenRect for many boxes under one camera, with the same
+// results: the camera's rotations and projection scales worked out once.
+class ScreenProjector {
+ public:
+  ScreenProjector(const Camera& camera, int width, int height);
+  ScreenBound bound(const Box3d& box) const;
+  ScreenBound rect(const Box3d& box) const;
+  const Camera& camera() const { return camera_; }
+
+ private:
+  Camera camera_;
+  Mat4d view_, camera_to_world_;
+  double tan_half_fovy_, f_, fx_;
+  int width_, height_;
+};
+
 // What of `object` (an object's bound) a part of it can reach: `part`'s
 // rectangle (the bound of a part's query box, queryPartBounds) within
 // `object`'s, with `object`'s depth bound, which the shaders' depth clamp
@@ -78,6 +95,30 @@ bool overlaps(const Rect& a, const Rect& b);
 // redrawn twice). Empty rectangles are dropped.
 std::vector<Rect> coverRects(std::vector<Rect> rects, size_t max);
 
+// Which cells (2^shift x 2^shift pixels) of a region the marked rectangles
+// touch, and whether a rectangle shares a cell with any of them: O(1) per
+// mark and per question, O(cells) to finish. Conservative: a shared cell
+// counts as meeting, though the pixels may not.
+class CellCoverage {
+ public:
+  CellCoverage(const Rect& region, int shift);
+  // `r` in frame pixels (clipped to the region; empty ones ignored). Only
+  // before finish().
+  void mark(const Rect& r);
+  // After the last mark, before the first meets().
+  void finish();
+  bool meets(const Rect& r) const;
+
+ private:
+  // Clips `r` to the region; false when nothing is left. Cells inclusive.
+  bool cells(const Rect& r, int* cx0, int* cy0, int* cx1, int* cy1) const;
+  Rect region_;
+  int shift_, w_, h_;
+  // A difference array while marking; after finish(), per (x, y) the number
+  // of marked cells in [0, x) x [0, y): (w_ + 1) x (h_ + 1).
+  std::vector<int32_t> sums_;
+};
+
 class DepthPyramid {
  public:
   // `depth`: region.w * region.h floats, rows bottom first (glReadPixels'
@@ -90,7 +131,11 @@ class DepthPyramid {
   // reaches_near is never). Exact per pixel; the coarse levels only prune. When the test
   // would visit more than `budget` texels it answers false (visible), so the
   // answer is always conservative.
-  bool hides(const ScreenBound& b, int budget = kDefaultBudget) const;
+  // When the answer is false because of a pixel at or behind the bound (not
+  // the budget), that pixel (frame coordinates) goes to *witness, if given;
+  // otherwise *witness is left as it was.
+  bool hides(const ScreenBound& b, int budget = kDefaultBudget,
+             std::pair<int, int>* witness = nullptr) const;
   static constexpr int kDefaultBudget = 4096;
 
   int levels() const { return int(levels_.size()); }
@@ -106,7 +151,8 @@ class DepthPyramid {
  private:
   // Whether every pixel of the (region-relative, inclusive) rectangle inside
   // texel (x, y) of `level` is nearer than anything inside `b` can be there.
-  bool refine(int level, int x, int y, const int rect[4], const ScreenBound& b, int* budget) const;
+  bool refine(int level, int x, int y, const int rect[4], const ScreenBound& b, int* budget,
+              std::pair<int, int>* witness) const;
   Rect region_;
   std::vector<std::vector<float>> levels_;
   std::vector<std::pair<int, int>> dims_;

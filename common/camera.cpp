@@ -52,11 +52,14 @@ std::array<Plane, 5> frustumPlanes(const Camera& c) {
 }
 
 EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c) {
+  return entryDepthPlanes(box, c, Mat4d::rotation(c.rotation), std::tan(c.fovy_deg * M_PI / 360.0));
+}
+
+EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c, const Mat4d& r, double ty) {
   // The ray through (ndc_x, ndc_y) has eye-space direction (ndc_x tx, ndc_y ty, -1),
   // so a point at eye distance t is eye + t d with d its world direction; the
   // slab face x_i = f is reached at t = (f - eye_i) / d_i, depth near / t.
-  Mat4d r = Mat4d::rotation(c.rotation);  // camera to world
-  double ty = std::tan(c.fovy_deg * M_PI / 360.0), tx = ty * c.aspect;
+  double tx = ty * c.aspect;
   EntryDepthPlanes p;
   for (int i = 0; i < 3; ++i) {
     double e = c.eye[i], face;

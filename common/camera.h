@@ -50,6 +50,10 @@ struct EntryDepthPlanes {
 inline constexpr double kNoDepthBound = 1e30;
 // `box` valid; the eye may be anywhere (inside on every axis: no bound at all).
 EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c);
+// The same with the camera-to-world rotation (Mat4d::rotation(c.rotation))
+// and tan(fovy / 2) worked out by the caller, once for many boxes.
+EntryDepthPlanes entryDepthPlanes(const Box3d& box, const Camera& c, const Mat4d& camera_to_world,
+                                  double tan_half_fovy);
 double entryDepth(const EntryDepthPlanes& p, double ndc_x, double ndc_y);
 
 }  // namespace dmmr

@@ -118,7 +118,16 @@ TEST(DepthPyramid, HidesEqualsThePerPixelCheck) {
       // Also depths exactly at a pixel's value: a tie is not hidden.
       if (k % 4 == 0 && !d.empty()) b.nearest = d[size_t(k) % d.size()];
       bool expected = hiddenByPixels(d, region, b);
-      ASSERT_EQ(p.hides(b, 1 << 30), expected) << b << " region " << region;
+      std::pair<int, int> seen{-1, -1};
+      ASSERT_EQ(p.hides(b, 1 << 30, &seen), expected) << b << " region " << region;
+      if (!expected && !b.reaches_near) {  // the witness: a pixel of the rectangle not nearer
+        auto [x, y] = seen;
+        ASSERT_TRUE(x >= std::max(b.x0, region.x) && x <= std::min(b.x1, region.x1() - 1) &&
+                    y >= std::max(b.y0, region.y) && y <= std::min(b.y1, region.y1() - 1))
+            << x << "," << y << " " << b;
+        ASSERT_FALSE(double(d[size_t(y - region.y) * region.w + (x - region.x)]) >
+                     b.bound(x, y, x, y));
+      }
       // With a tiny budget the answer may turn to "visible", never to "hidden".
       if (p.hides(b, 2)) {
         ASSERT_TRUE(expected) << b;
@@ -326,6 +335,48 @@ TEST(QueryPartBounds, WidensThePartByTheObjectsMargins) {
       ASSERT_NEAR(pq.hi[a] - part.hi[a], hi_margin, 1e-9 * (scale + std::abs(box.hi[a])));
     }
   }
+}
+
+// meets() against brute force over the cells: a rectangle meets the
+// marked ones exactly when some cell it touches is touched by a marked one.
+TEST(CellCoverage, MeetsEqualsTheCellsBruteForce) {
+  std::mt19937 rng(23);
+  size_t met = 0, missed = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    Rect region{std::uniform_int_distribution<int>(0, 50)(rng),
+                std::uniform_int_distribution<int>(0, 50)(rng),
+                std::uniform_int_distribution<int>(1, 300)(rng),
+                std::uniform_int_distribution<int>(1, 300)(rng)};
+    int shift = std::uniform_int_distribution<int>(0, 5)(rng);
+    auto randomRect = [&] {
+      std::uniform_int_distribution<int> x(region.x - 20, region.x1() + 20),
+          y(region.y - 20, region.y1() + 20), size(-2, 60);
+      return Rect{x(rng), y(rng), size(rng), size(rng)};
+    };
+    int cw = ((region.w - 1) >> shift) + 1, ch = ((region.h - 1) >> shift) + 1;
+    std::vector<char> touched(size_t(cw) * size_t(ch), 0);
+    auto forCells = [&](const Rect& r, auto f) {
+      for (int py = std::max(r.y, region.y); py < std::min(r.y1(), region.y1()); ++py)
+        for (int px = std::max(r.x, region.x); px < std::min(r.x1(), region.x1()); ++px)
+          f(size_t((py - region.y) >> shift) * size_t(cw) + size_t((px - region.x) >> shift));
+    };
+    CellCoverage c(region, shift);
+    for (int n = std::uniform_int_distribution<int>(0, 6)(rng); n > 0; --n) {
+      Rect r = randomRect();
+      c.mark(r);
+      forCells(r, [&](size_t i) { touched[i] = 1; });
+    }
+    c.finish();
+    for (int q = 0; q < 30; ++q) {
+      Rect r = randomRect();
+      bool expected = false;
+      forCells(r, [&](size_t i) { expected = expected || touched[i]; });
+      ASSERT_EQ(c.meets(r), expected) << r << " region " << region << " shift " << shift;
+      (expected ? met : missed)++;
+    }
+  }
+  EXPECT_GT(met, 1000u);
+  EXPECT_GT(missed, 1000u);
 }
 
 TEST(ScreenBound, UniteCoversBoth) {
