@@ -67,7 +67,6 @@ class ScreenProjector {
   ScreenProjector(const Camera& camera, int width, int height);
   ScreenBound bound(const Box3d& box) const;
   ScreenBound rect(const Box3d& box) const;
-  const Camera& camera() const { return camera_; }
 
  private:
   Camera camera_;
