@@ -633,6 +633,7 @@ class Culler {
     if (++stamp_ == 0) {  // wrapped: no stamp may match a kept one
       std::fill(bound_stamp_.begin(), bound_stamp_.end(), 0);
       stamp_ = 1;
+      pyramid_stamp_ = 0;
     }
     projector_.reset();
   }
@@ -663,11 +664,22 @@ class Culler {
                                          const std::vector<uint32_t>& drawn, const FrameJob& job,
                                          Decision* d) {
     CellCoverage written(job.region, kCoverageShift);
-    for (uint32_t o : drawn) written.mark(footprint(o, job));
+    Rect dirty;  // the footprints' bounding rectangle
+    for (uint32_t o : drawn) {
+      Rect f = footprint(o, job);
+      written.mark(f);
+      if (f.empty()) continue;
+      if (dirty.empty()) {
+        dirty = f;
+        continue;
+      }
+      int x = std::min(dirty.x, f.x), y = std::min(dirty.y, f.y);
+      dirty = Rect{x, y, std::max(dirty.x1(), f.x1()) - x, std::max(dirty.y1(), f.y1()) - y};
+    }
     written.finish();
     std::vector<uint32_t> again, out;
     for (uint32_t o : passed) (written.meets(footprint(o, job)) ? again : out).push_back(o);
-    std::vector<uint32_t> still = testPyramid(again, job, d);
+    std::vector<uint32_t> still = testPyramid(again, job, d, &dirty);
     out.insert(out.end(), still.begin(), still.end());
     std::sort(out.begin(), out.end());
     return out;
@@ -678,15 +690,34 @@ class Culler {
   // runs of consecutive objects like the queries (a run's bound is the union
   // of its members', so a hidden run hides them all). Returns those that may
   // show.
+  // `dirty` (frame pixels, optional): the depth changed only there since
+  // this job's last readback, which is then read back and rebuilt there
+  // alone.
   std::vector<uint32_t> testPyramid(const std::vector<uint32_t>& candidates, const FrameJob& job,
-                                    Decision* d) {
+                                    Decision* d, const Rect* dirty = nullptr) {
     // Rasterising what was drawn is drawing, not deciding: wait for it
     // before the readback is timed.
     gl_.renderer.finish();
     auto tr = Clock::now();
-    gl_.renderer.readDepth(job.region, &depth_);
-    d->retrieve_ms += msSince(tr);
-    pyramid_.build(depth_.data(), job.region);
+    if (dirty && pyramid_stamp_ == stamp_) {
+      Rect r{std::max(dirty->x, job.region.x), std::max(dirty->y, job.region.y), 0, 0};
+      r.w = std::min(dirty->x1(), job.region.x1()) - r.x;
+      r.h = std::min(dirty->y1(), job.region.y1()) - r.y;
+      if (!r.empty()) {
+        gl_.renderer.readDepth(r, &dirty_depth_);
+        for (int y = 0; y < r.h; ++y)
+          std::copy_n(dirty_depth_.data() + size_t(y) * size_t(r.w), size_t(r.w),
+                      depth_.data() + size_t(y + r.y - job.region.y) * size_t(job.region.w) +
+                          size_t(r.x - job.region.x));
+        d->retrieve_ms += msSince(tr);
+        pyramid_.update(depth_.data(), r);
+      }
+    } else {
+      gl_.renderer.readDepth(job.region, &depth_);
+      d->retrieve_ms += msSince(tr);
+      pyramid_.build(depth_.data(), job.region);
+      pyramid_stamp_ = stamp_;
+    }
     pyramid_camera_ = job.camera;
     pyramid_frame_ = job.frame;
     bounds_.resize(candidates.size());
@@ -793,6 +824,8 @@ class Culler {
   VisibilityOptions opts_;
   GlStage& gl_;
   std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
+  std::vector<float> dirty_depth_;                  // testPyramid's partial readback
+  uint32_t pyramid_stamp_ = 0;  // the job (stamp_) whose full readback depth_ and pyramid_ hold
   std::vector<uint32_t> before_;                    // and the frame before's
   std::vector<uint32_t> last_region_, region_now_;  // the jobs' objects, last frame and this
   std::vector<uint32_t> marked_until_;              // per object: first frame to test again

@@ -269,6 +269,34 @@ void DepthPyramid::build(const float* depth, const Rect& region) {
   }
 }
 
+void DepthPyramid::update(const float* depth, const Rect& dirty) {
+  DMMR_CHECK(!levels_.empty());
+  int x0 = std::max(dirty.x, region_.x) - region_.x, x1 = std::min(dirty.x1(), region_.x1()) - region_.x;
+  int y0 = std::max(dirty.y, region_.y) - region_.y, y1 = std::min(dirty.y1(), region_.y1()) - region_.y;
+  if (x0 >= x1 || y0 >= y1) return;
+  --x1, --y1;  // inclusive from here on
+  const size_t w = size_t(region_.w);
+  for (int y = y0; y <= y1; ++y)
+    std::copy_n(depth + size_t(y) * w + size_t(x0), size_t(x1 - x0 + 1),
+                levels_[0].data() + size_t(y) * w + size_t(x0));
+  for (size_t l = 1; l < levels_.size(); ++l) {
+    auto [pw, ph] = dims_[l - 1];
+    int cw = dims_[l].first;
+    x0 >>= 1, y0 >>= 1, x1 >>= 1, y1 >>= 1;
+    const float* in = levels_[l - 1].data();
+    float* out = levels_[l].data();
+    for (int y = y0; y <= y1; ++y) {
+      const float* r0 = in + size_t(2 * y) * size_t(pw);
+      const float* r1 = 2 * y + 1 < ph ? r0 + pw : r0;  // as build(): odd sizes repeat the last
+      for (int x = x0; x <= x1; ++x) {
+        float v = std::min(r0[2 * x], r1[2 * x]);
+        if (2 * x + 1 < pw) v = std::min(v, std::min(r0[2 * x + 1], r1[2 * x + 1]));
+        out[size_t(y) * size_t(cw) + size_t(x)] = v;
+      }
+    }
+  }
+}
+
 bool DepthPyramid::refine(int level, int x, int y, const int rect[4], const ScreenBound& b,
                           int* budget, std::pair<int, int>* witness) const {
   // The texel's pixels within the rectangle, in frame pixels, and the

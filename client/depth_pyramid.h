@@ -123,6 +123,10 @@ class DepthPyramid {
   // `depth`: region.w * region.h floats, rows bottom first (glReadPixels'
   // order), the depth of `region` of the frame. region non-empty.
   void build(const float* depth, const Rect& region);
+  // After build(), with `depth` (the whole region, as for build) changed
+  // only inside `dirty` (frame pixels): brings every level up to date,
+  // recomputing only the texels over `dirty`. The result equals build()'s.
+  void update(const float* depth, const Rect& dirty);
 
   // True when nothing inside the bound can show in the region: every pixel
   // of `b`'s rectangle inside the region holds a depth strictly greater than

@@ -139,6 +139,40 @@ TEST(DepthPyramid, HidesEqualsThePerPixelCheck) {
   EXPECT_GT(shown, 1000u);
 }
 
+// update() after a change inside a rectangle gives every texel build()
+// gives for the changed buffer: odd sizes, regions off the origin, dirty
+// rectangles partly outside the region, single pixels.
+TEST(DepthPyramid, UpdateEqualsARebuild) {
+  std::mt19937 rng(31);
+  for (int trial = 0; trial < 300; ++trial) {
+    Rect region{std::uniform_int_distribution<int>(0, 40)(rng),
+                std::uniform_int_distribution<int>(0, 40)(rng),
+                std::uniform_int_distribution<int>(1, 150)(rng),
+                std::uniform_int_distribution<int>(1, 150)(rng)};
+    std::vector<float> d = randomDepth(rng, region.w, region.h);
+    DepthPyramid updated, rebuilt;
+    updated.build(d.data(), region);
+    for (int change = 0; change < 3; ++change) {
+      std::uniform_int_distribution<int> x(region.x - 10, region.x1() + 5),
+          y(region.y - 10, region.y1() + 5), size(0, 60);
+      Rect dirty{x(rng), y(rng), size(rng), size(rng)};
+      std::uniform_real_distribution<float> depth(0.f, 1.f);
+      for (int py = std::max(dirty.y, region.y); py < std::min(dirty.y1(), region.y1()); ++py)
+        for (int px = std::max(dirty.x, region.x); px < std::min(dirty.x1(), region.x1()); ++px)
+          d[size_t(py - region.y) * size_t(region.w) + size_t(px - region.x)] = depth(rng);
+      updated.update(d.data(), dirty);
+      rebuilt.build(d.data(), region);
+      ASSERT_EQ(updated.levels(), rebuilt.levels());
+      for (int l = 0; l < rebuilt.levels(); ++l)
+        for (int ty = 0; ty < rebuilt.height(l); ++ty)
+          for (int tx = 0; tx < rebuilt.width(l); ++tx)
+            ASSERT_EQ(updated.texel(l, tx, ty), rebuilt.texel(l, tx, ty))
+                << "trial " << trial << " level " << l << " texel " << tx << "," << ty << " dirty "
+                << dirty << " region " << region;
+    }
+  }
+}
+
 TEST(DepthPyramid, NearPlaneBoundsAreNeverHidden) {
   std::vector<float> d(16 * 16, 1.f);  // everything at the near plane
   DepthPyramid p;
