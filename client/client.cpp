@@ -824,8 +824,6 @@ class Culler {
   VisibilityOptions opts_;
   GlStage& gl_;
   std::vector<uint32_t> previous_;                  // last frame's visible list (ascending)
-  std::vector<float> dirty_depth_;                  // testPyramid's partial readback
-  uint32_t pyramid_stamp_ = 0;  // the job (stamp_) whose full readback depth_ and pyramid_ hold
   std::vector<uint32_t> before_;                    // and the frame before's
   std::vector<uint32_t> last_region_, region_now_;  // the jobs' objects, last frame and this
   std::vector<uint32_t> marked_until_;              // per object: first frame to test again
@@ -836,6 +834,8 @@ class Culler {
   DepthPyramid pyramid_;
   Camera pyramid_camera_;                // the camera pyramid_'s depth was drawn with
   uint32_t pyramid_frame_ = UINT32_MAX;  // and its frame
+  uint32_t pyramid_stamp_ = 0;           // the job (stamp_) of depth_'s last full readback
+  std::vector<float> dirty_depth_;       // testPyramid's partial readback
   // Whether the lists came from frames drawn in full (skip): last frame's
   // (previous_), the frame before's (before_), this frame's so far.
   bool previous_skipped_ = false, before_skipped_ = false, skipped_now_ = false;

@@ -271,8 +271,10 @@ void DepthPyramid::build(const float* depth, const Rect& region) {
 
 void DepthPyramid::update(const float* depth, const Rect& dirty) {
   DMMR_CHECK(!levels_.empty());
-  int x0 = std::max(dirty.x, region_.x) - region_.x, x1 = std::min(dirty.x1(), region_.x1()) - region_.x;
-  int y0 = std::max(dirty.y, region_.y) - region_.y, y1 = std::min(dirty.y1(), region_.y1()) - region_.y;
+  int x0 = std::max(dirty.x, region_.x) - region_.x,
+      x1 = std::min(dirty.x1(), region_.x1()) - region_.x;
+  int y0 = std::max(dirty.y, region_.y) - region_.y,
+      y1 = std::min(dirty.y1(), region_.y1()) - region_.y;
   if (x0 >= x1 || y0 >= y1) return;
   --x1, --y1;  // inclusive from here on
   const size_t w = size_t(region_.w);

@@ -8,9 +8,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   dmmr::fuzz::fuzzContainerReader(
       data, size,
-      [](const std::vector<uint8_t>& f, const std::string& p) {
-        return dmmr::decodeParts(f, p);
-      },
+      [](const std::vector<uint8_t>& f, const std::string& p) { return dmmr::decodeParts(f, p); },
       [](const auto& v) { return dmmr::encodeParts(v); });
   return 0;
 }
