@@ -9,7 +9,6 @@
 
 int main(int argc, char** argv) {
   dmmr::OsgViewerOptions o;
-  std::string occlusion = "on";
   CLI::App app{
       "dmmr-osgviewer: render a walkthrough of the original model with osgViewer (and "
       "osg::OcclusionQueryNode), headless through OSMesa: the benchmarks' OSG baseline"};
@@ -26,9 +25,8 @@ int main(int argc, char** argv) {
                  "nearest near plane (default: model diagonal * 1e-5, as dmmr; OSG computes "
                  "near and far from what it draws and never goes closer than this)")
       ->check(CLI::PositiveNumber);
-  app.add_option("--occlusion", occlusion,
-                 "insert osg::OcclusionQueryNode above groups (default on)")
-      ->check(CLI::IsMember({"on", "off"}));
+  dmmr::addSwitchOption(app, "--occlusion", &o.occlusion,
+                        "insert osg::OcclusionQueryNode above groups");
   app.add_option("--min-vertices", o.queries.min_vertices,
                  "a group gets a query node when its subgraph has more vertices than this")
       ->capture_default_str();
@@ -47,7 +45,6 @@ int main(int argc, char** argv) {
     return dmmr::exitParse(app, e);
   }
   try {
-    o.occlusion = occlusion == "on";
     dmmr::runOsgViewer(o);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dmmr-osgviewer: %s\n", e.what());

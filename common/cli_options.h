@@ -34,6 +34,15 @@ inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view,
       ->check(CLI::PositiveNumber);
 }
 
+// --NAME on|off into `*value`, which holds the default (appended to `help`).
+inline void addSwitchOption(CLI::App& app, const std::string& name, bool* value,
+                            const std::string& help) {
+  app.add_option_function<std::string>(
+         name, [value](const std::string& v) { *value = v == "on"; },
+         help + " (default " + (*value ? "on" : "off") + ")")
+      ->check(CLI::IsMember({"on", "off"}));
+}
+
 // --flush-triangles auto|N into `*triangles` (-1 for auto): how the
 // renderer flushes its drawing (Renderer::setFlushEvery; auto: the driver's
 // default, defaultFlushTriangles). `*triangles` holds the tool's default.

@@ -56,11 +56,9 @@ int main(int argc, char** argv) {
                  "visibility and render stages on two contexts and threads; the default with "
                  "--visibility queries) or auto (both timed on the first frames, the faster kept)")
       ->check(CLI::IsMember({"split", "fused", "auto"}));
-  std::string costModel = "on";
-  app.add_option("--cost-model", costModel,
-                 "on: a client stops culling for a while when its measurements say culling "
-                 "does not pay (never changes a pixel); off: always cull")
-      ->check(CLI::IsMember({"on", "off"}));
+  dmmr::addSwitchOption(app, "--cost-model", &c.visibility.governor,
+                        "on: a client stops culling for a while when its measurements say "
+                        "culling does not pay (never changes a pixel); off: always cull");
   app.add_option("--query-threshold", c.visibility.query_threshold,
                  "samples a query must pass (0: any; above 0 approximates)");
   app.add_option("--keep-frames", c.visibility.keep_frames,
@@ -68,18 +66,14 @@ int main(int argc, char** argv) {
   app.add_option("--second-pass-min", c.visibility.second_pass_min,
                  "objects newly passing that trigger a second depth-and-query pass "
                  "(large: never)");
-  std::string predict = "off";
-  app.add_option("--predict", predict,
-                 "fused stages: on (last frame's visible objects that its depth, moved to the "
-                 "new camera, all but hides are not drawn first but tested) or off (the "
-                 "default); never changes a pixel")
-      ->check(CLI::IsMember({"on", "off"}));
-  std::string partBoxes = "on";
-  app.add_option("--part-boxes", partBoxes,
-                 "depth-pyramid tests: on (an object whose box passes is tested again by the "
-                 "preprocessor's part boxes; the default) or off (its box alone); never "
-                 "changes a pixel")
-      ->check(CLI::IsMember({"on", "off"}));
+  dmmr::addSwitchOption(app, "--predict", &c.visibility.predict,
+                        "fused stages: on (last frame's visible objects that its depth, moved "
+                        "to the new camera, all but hides are not drawn first but tested) or "
+                        "off; never changes a pixel");
+  dmmr::addSwitchOption(app, "--part-boxes", &c.visibility.part_boxes,
+                        "depth-pyramid tests: on (an object whose box passes is tested again "
+                        "by the preprocessor's part boxes) or off (its box alone); never "
+                        "changes a pixel");
   std::string weights = "visible";
   app.add_option("--weights", weights,
                  "division weights: visible (triangles drawn lately), fitted (a cost model and "
@@ -215,9 +209,6 @@ int main(int argc, char** argv) {
   c.visibility.stages = stages == "fused"  ? dmmr::StageMode::Fused
                         : stages == "auto" ? dmmr::StageMode::Auto
                                            : dmmr::StageMode::Split;
-  c.visibility.governor = costModel == "on";
-  c.visibility.predict = predict == "on";
-  c.visibility.part_boxes = partBoxes == "on";
   if (c.visibility.stages != dmmr::StageMode::Split &&
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)
