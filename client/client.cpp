@@ -648,10 +648,7 @@ class Culler {
   Rect footprint(uint32_t object, const FrameJob& job) const {
     ScreenBound b = bound(object, job.camera);
     if (b.reaches_near) return job.region;
-    Rect r{std::max(b.x0, job.region.x), std::max(b.y0, job.region.y), 0, 0};
-    r.w = std::min(b.x1 + 1, job.region.x1()) - r.x;
-    r.h = std::min(b.y1 + 1, job.region.y1()) - r.y;
-    return r.empty() ? Rect{} : r;
+    return intersection(Rect{b.x0, b.y0, b.x1 + 1 - b.x0, b.y1 + 1 - b.y0}, job.region);
   }
 
   // testPyramid again for `passed` (ascending, objects that passed before
@@ -668,13 +665,7 @@ class Culler {
     for (uint32_t o : drawn) {
       Rect f = footprint(o, job);
       written.mark(f);
-      if (f.empty()) continue;
-      if (dirty.empty()) {
-        dirty = f;
-        continue;
-      }
-      int x = std::min(dirty.x, f.x), y = std::min(dirty.y, f.y);
-      dirty = Rect{x, y, std::max(dirty.x1(), f.x1()) - x, std::max(dirty.y1(), f.y1()) - y};
+      dirty = boundingRect(dirty, f);
     }
     written.finish();
     std::vector<uint32_t> again, out;
@@ -700,9 +691,7 @@ class Culler {
     gl_.renderer.finish();
     auto tr = Clock::now();
     if (dirty && pyramid_stamp_ == stamp_) {
-      Rect r{std::max(dirty->x, job.region.x), std::max(dirty->y, job.region.y), 0, 0};
-      r.w = std::min(dirty->x1(), job.region.x1()) - r.x;
-      r.h = std::min(dirty->y1(), job.region.y1()) - r.y;
+      Rect r = intersection(*dirty, job.region);
       if (!r.empty()) {
         gl_.renderer.readDepth(r, &dirty_depth_);
         for (int y = 0; y < r.h; ++y)

@@ -146,12 +146,18 @@ bool overlaps(const Rect& a, const Rect& b) {
   return !a.empty() && !b.empty() && a.x < b.x1() && b.x < a.x1() && a.y < b.y1() && b.y < a.y1();
 }
 
-namespace {
+Rect intersection(const Rect& a, const Rect& b) {
+  int x = std::max(a.x, b.x), y = std::max(a.y, b.y);
+  Rect r{x, y, std::min(a.x1(), b.x1()) - x, std::min(a.y1(), b.y1()) - y};
+  return r.empty() ? Rect{} : r;
+}
+
 Rect boundingRect(const Rect& a, const Rect& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
   int x = std::min(a.x, b.x), y = std::min(a.y, b.y);
   return Rect{x, y, std::max(a.x1(), b.x1()) - x, std::max(a.y1(), b.y1()) - y};
 }
-}  // namespace
 
 std::vector<Rect> coverRects(std::vector<Rect> rects, size_t max) {
   DMMR_CHECK(max >= 1);
@@ -186,13 +192,12 @@ CellCoverage::CellCoverage(const Rect& region, int shift) : region_(region), shi
 }
 
 bool CellCoverage::cells(const Rect& r, int* cx0, int* cy0, int* cx1, int* cy1) const {
-  int x0 = std::max(r.x, region_.x), x1 = std::min(r.x1(), region_.x1());
-  int y0 = std::max(r.y, region_.y), y1 = std::min(r.y1(), region_.y1());
-  if (r.empty() || x0 >= x1 || y0 >= y1) return false;
-  *cx0 = (x0 - region_.x) >> shift_;
-  *cx1 = (x1 - 1 - region_.x) >> shift_;
-  *cy0 = (y0 - region_.y) >> shift_;
-  *cy1 = (y1 - 1 - region_.y) >> shift_;
+  Rect c = intersection(r, region_);
+  if (c.empty()) return false;
+  *cx0 = (c.x - region_.x) >> shift_;
+  *cx1 = (c.x1() - 1 - region_.x) >> shift_;
+  *cy0 = (c.y - region_.y) >> shift_;
+  *cy1 = (c.y1() - 1 - region_.y) >> shift_;
   return true;
 }
 
@@ -271,12 +276,11 @@ void DepthPyramid::build(const float* depth, const Rect& region) {
 
 void DepthPyramid::update(const float* depth, const Rect& dirty) {
   DMMR_CHECK(!levels_.empty());
-  int x0 = std::max(dirty.x, region_.x) - region_.x,
-      x1 = std::min(dirty.x1(), region_.x1()) - region_.x;
-  int y0 = std::max(dirty.y, region_.y) - region_.y,
-      y1 = std::min(dirty.y1(), region_.y1()) - region_.y;
-  if (x0 >= x1 || y0 >= y1) return;
-  --x1, --y1;  // inclusive from here on
+  Rect c = intersection(dirty, region_);
+  if (c.empty()) return;
+  // Region-relative and inclusive from here on.
+  int x0 = c.x - region_.x, x1 = c.x1() - 1 - region_.x;
+  int y0 = c.y - region_.y, y1 = c.y1() - 1 - region_.y;
   const size_t w = size_t(region_.w);
   for (int y = y0; y <= y1; ++y)
     std::copy_n(depth + size_t(y) * w + size_t(x0), size_t(x1 - x0 + 1),

@@ -88,6 +88,10 @@ ScreenBound unite(const ScreenBound& a, const ScreenBound& b);
 
 // Whether two rectangles share a pixel.
 bool overlaps(const Rect& a, const Rect& b);
+// The pixels both hold (an empty Rect{} when none).
+Rect intersection(const Rect& a, const Rect& b);
+// The smallest rectangle holding both (an empty one counts as nothing).
+Rect boundingRect(const Rect& a, const Rect& b);
 // At most `max` (>= 1) rectangles covering every pixel of `rects`: where
 // there are more, the pair whose bounding rectangle adds the fewest pixels
 // is merged, and overlapping ones are merged always (so that no pixel is

@@ -426,6 +426,15 @@ TEST(ScreenBound, UniteCoversBoth) {
 
 namespace {
 
+TEST(Rects, IntersectionAndBoundingRect) {
+  Rect a{0, 0, 4, 3}, b{2, 1, 5, 5}, far{10, 10, 1, 1};
+  EXPECT_EQ(intersection(a, b), (Rect{2, 1, 2, 2}));
+  EXPECT_EQ(intersection(a, far), Rect{});
+  EXPECT_EQ(boundingRect(a, b), (Rect{0, 0, 7, 6}));
+  EXPECT_EQ(boundingRect(Rect{}, b), b);  // an empty rectangle adds nothing
+  EXPECT_EQ(boundingRect(a, Rect{5, 5, 0, 3}), a);
+}
+
 TEST(CoverRects, CoversEveryPixelWithinTheLimitAndNoOverlap) {
   std::mt19937 rng(5);
   for (int trial = 0; trial < 300; ++trial) {
