@@ -4,12 +4,16 @@
 //
 // A client's work on a frame is modelled as
 //   ms = per_drawn * objects drawn + per_triangle * triangles drawn
-//      + per_tested * objects tested + per_pixel * pixels of its region,
+//      + per_tested * objects tested + per_pixel * pixels of its region
+//      + per_fill * fill,
+// where fill is the pixels of the drawn objects' footprints inside its
+// region (overdraw counted: where a software rasteriser spends its time),
 // divided by the client's speed (1 for a typical client, 0.5 for one that
 // takes twice as long on the same work). The division then weighs an object
 // drawn lately per_drawn + per_triangle * triangles + per_tested, one hidden
-// lately per_tested, and every pixel per_pixel, so that balanced weights mean
-// balanced time, not only balanced triangles.
+// lately per_tested, and every pixel per_pixel; a drawn object's fill weighs
+// per_fill per pixel of its footprint, spread over it (divide.h), so that
+// balanced weights mean balanced time, not only balanced triangles.
 #pragma once
 
 #include <cstdint>
@@ -21,13 +25,13 @@ namespace dmmr {
 // One client's frame: its work and the milliseconds it took.
 struct CostSample {
   int client = 0;  // 0-based
-  double drawn = 0, triangles = 0, tested = 0, pixels = 0;
+  double drawn = 0, triangles = 0, tested = 0, pixels = 0, fill = 0;
   double ms = 0;
   friend bool operator==(const CostSample&, const CostSample&) = default;
 };
 
 struct CostModel {
-  double per_drawn = 0, per_triangle = 0, per_tested = 0, per_pixel = 0;  // ms each
+  double per_drawn = 0, per_triangle = 0, per_tested = 0, per_pixel = 0, per_fill = 0;  // ms each
   bool fitted = false;  // false: too little or degenerate data; use triangles
   friend bool operator==(const CostModel&, const CostModel&) = default;
 };

@@ -9,8 +9,10 @@
 namespace dmmr {
 
 std::ostream& operator<<(std::ostream& os, const Footprint& f) {
-  return os << "footprint[obj " << f.object << " x " << f.x0 << ".." << f.x1 << " y " << f.y0
-            << ".." << f.y1 << " w " << f.weight << "]";
+  os << "footprint[obj " << f.object << " x " << f.x0 << ".." << f.x1 << " y " << f.y0 << ".."
+     << f.y1 << " w " << f.weight << (f.fill > 0 ? " fill " : "");
+  if (f.fill > 0) os << f.fill;
+  return os << "]";
 }
 
 std::ostream& operator<<(std::ostream& os, const Region& r) {
@@ -158,6 +160,13 @@ Span spanOf(const Footprint& f, bool vertical) {
   return vertical ? Span{f.x0, f.x1} : Span{f.y0, f.y1};
 }
 
+// Pixels of the footprint inside `rect`.
+double overlapArea(const Footprint& f, Rect rect) {
+  double w = std::min(f.x1, rect.x1()) - std::max(f.x0, rect.x);
+  double h = std::min(f.y1, rect.y1()) - std::max(f.y0, rect.y);
+  return w > 0 && h > 0 ? w * h : 0.0;
+}
+
 struct Split {
   int at = 0;  // first pixel of the right/top side
 };
@@ -166,23 +175,49 @@ struct Split {
 // one axis. Weights of spans starting before each line (exclusive prefix
 // sums) and ending after it (suffix sums) come from histograms over the
 // rectangle's pixels, so one split costs O(items + pixels).
+// Fill, spread over each footprint's pixel lines inside `rect`, comes from
+// a second histogram (its per-line weight) summed twice.
 // `sl` and `sr` are the two sides' shares (their clients' summed speeds;
 // client counts when speeds are equal); `pixel` the weight per pixel of a
-// side, `across` the rectangle's extent across the split.
-Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int origin, int size,
-                int first, int last, double sl, double sr, double pixel, int across) {
+// side.
+Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, Rect rect, int first,
+                int last, double sl, double sr, double pixel) {
+  const int origin = vertical ? rect.x : rect.y, size = vertical ? rect.w : rect.h;
+  const int across = vertical ? rect.h : rect.w, acrossLo = vertical ? rect.y : rect.x;
   std::vector<double> startsAt(size_t(size) + 1, 0.0), endsAt(size_t(size) + 1, 0.0);
-  double total = 0;
+  std::vector<double> fillSteps;  // difference array of fill per line; empty: no fill
+  double total = 0, fillTotal = 0;
   for (const Footprint* f : items) {
     Span s = spanOf(*f, vertical);
     double w = double(std::max<uint64_t>(f->weight, 1));
-    startsAt[size_t(std::clamp(s.lo - origin, 0, size))] += w;
-    endsAt[size_t(std::clamp(s.hi - origin, 0, size))] += w;
+    int lo = std::clamp(s.lo - origin, 0, size), hi = std::clamp(s.hi - origin, 0, size);
+    startsAt[size_t(lo)] += w;
+    endsAt[size_t(hi)] += w;
     total += w;
+    if (f->fill > 0 && lo < hi) {
+      Span c = spanOf(*f, !vertical);
+      int rows = std::min(c.hi, acrossLo + across) - std::max(c.lo, acrossLo);
+      if (rows <= 0) continue;
+      if (fillSteps.empty()) fillSteps.assign(size_t(size) + 1, 0.0);
+      double perLine = f->fill * rows;
+      fillSteps[size_t(lo)] += perLine;
+      fillSteps[size_t(hi)] -= perLine;
+      fillTotal += perLine * (hi - lo);
+    }
+  }
+  // fillLeftOf[k]: fill of the lines before line origin + k.
+  std::vector<double> fillLeftOf;
+  if (!fillSteps.empty()) {
+    fillLeftOf.assign(size_t(size) + 1, 0.0);
+    double perLine = 0;
+    for (int k = 0; k < size; ++k) {
+      perLine += fillSteps[size_t(k)];
+      fillLeftOf[size_t(k) + 1] = fillLeftOf[size_t(k)] + perLine;
+    }
   }
   const double line = pixel * across;  // a side's weight per pixel line
   const double objects = total;
-  total += line * size;
+  total += line * size + fillTotal;
   const double sd = sl + sr;
   const double lt = total * sl / sd, rt = total * sr / sd;
   const double geometric = origin + double(size) * sl / sd;
@@ -199,6 +234,10 @@ Split bestSplit(const std::vector<const Footprint*>& items, bool vertical, int o
     size_t k = size_t(at - origin);
     endedUpTo += endsAt[k];
     double l = left + line * (at - origin), r = objects - endedUpTo + line * (origin + size - at);
+    if (!fillLeftOf.empty()) {
+      l += fillLeftOf[k];
+      r += fillTotal - fillLeftOf[k];
+    }
     // For uneven shares the per-client term alone would reward duplicating a
     // heavy straddler into both sides; charge the duplicate.
     double cost = std::fabs(l - lt) + std::fabs(r - rt) +
@@ -221,10 +260,13 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
   if (clients == 1) {
     Region r;
     r.rect = rect;
+    double fill = 0;
     for (const Footprint* f : items) {
       r.objects.push_back(f->object);
       r.weight += f->weight;
+      if (f->fill > 0) fill += f->fill * overlapArea(*f, rect);
     }
+    r.weight += uint64_t(std::llround(fill));
     if (!std::is_sorted(r.objects.begin(), r.objects.end()))  // usually already ascending
       std::sort(r.objects.begin(), r.objects.end());
     out->push_back(std::move(r));
@@ -257,8 +299,7 @@ void divide(const std::vector<const Footprint*>& items, Rect rect, bool vertical
     sl = sum(first_client, nl);
     sr = sum(first_client + nl, nr);
   }
-  Split s =
-      bestSplit(items, vertical, origin, size, first, last, sl, sr, costs.pixel_weight, across);
+  Split s = bestSplit(items, vertical, rect, first, last, sl, sr, costs.pixel_weight);
 
   // Branch-free partition: random footprints make the branches unpredictable.
   std::vector<const Footprint*> left(items.size()), right(items.size());
@@ -298,6 +339,7 @@ std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame,
   if (clients <= 0) return out;
   DMMR_CHECK(costs.speeds.empty() || costs.speeds.size() == size_t(clients));
   for (double s : costs.speeds) DMMR_CHECK(std::isfinite(s) && s > 0);
+  for (const Footprint& f : items) DMMR_CHECK(std::isfinite(f.fill) && f.fill >= 0);
   DMMR_CHECK(std::isfinite(costs.pixel_weight) && costs.pixel_weight >= 0);
   std::vector<const Footprint*> inside;
   inside.reserve(items.size());

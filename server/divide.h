@@ -17,7 +17,10 @@ namespace dmmr {
 struct Footprint {
   uint32_t object = 0;
   int x0 = 0, x1 = 0, y0 = 0, y1 = 0;
-  uint64_t weight = 0;
+  uint64_t weight = 0;  // counted whole on every side the footprint reaches
+  // Weight per pixel of the footprint, spread evenly over its rectangle (an
+  // object's fill: each side of a split gets the part it overlaps). >= 0.
+  double fill = 0;
   friend bool operator==(const Footprint&, const Footprint&) = default;
 };
 std::ostream& operator<<(std::ostream& os, const Footprint& f);
@@ -51,7 +54,7 @@ class FootprintProjector {
 struct Region {
   Rect rect;
   std::vector<uint32_t> objects;  // ascending object indices
-  uint64_t weight = 0;            // sum of the objects' weights
+  uint64_t weight = 0;            // the objects' weights and fill inside rect, rounded
   friend bool operator==(const Region&, const Region&) = default;
 };
 std::ostream& operator<<(std::ostream& os, const Region& r);
@@ -66,8 +69,10 @@ std::ostream& operator<<(std::ostream& os, const Region& r);
 // vertical and horizontal lines, starting across the longer side; a side of
 // one pixel forces the other direction. Ties go to the line nearest the
 // area-proportional one. An object whose footprint straddles a split goes to
-// both sides. When the frame has fewer pixels than clients, the extra
-// clients get empty rectangles and no objects.
+// both sides. A footprint's fill is spread over its rectangle: each side
+// gets fill times the pixels of the footprint inside it. When the frame has
+// fewer pixels than clients, the extra clients get empty rectangles and no
+// objects.
 std::vector<Region> divideFrame(const std::vector<Footprint>& items, Rect frame, int clients);
 
 // What the division balances besides the objects' weights.

@@ -74,12 +74,17 @@ int main(int argc, char** argv) {
                         "depth-pyramid tests: on (an object whose box passes is tested again "
                         "by the preprocessor's part boxes) or off (its box alone); never "
                         "changes a pixel");
-  std::string weights = "visible";
+  std::string weights = "fitted";
   app.add_option("--weights", weights,
-                 "division weights: visible (triangles drawn lately), fitted (a cost model and "
-                 "each client's speed fitted to the clients' measured times) or frustum (all "
-                 "triangles)")
+                 "division weights: fitted (a cost model of objects drawn and tested, "
+                 "triangles, pixels and fill, and each client's speed, fitted to the clients' "
+                 "measured times; the default), visible (triangles drawn lately) or frustum "
+                 "(all triangles)")
       ->check(CLI::IsMember({"visible", "fitted", "frustum"}));
+  dmmr::addSwitchOption(app, "--cost-grid", &s.cost_grid,
+                        "frustum division: on (the weights are corrected, cell by cell of the "
+                        "screen, by where the clients' measured time went in past frames; with "
+                        "visible or fitted weights) or off; never changes a pixel");
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')

@@ -69,6 +69,47 @@ std::vector<double> FramePlanner::speeds() const {
   return speeds_;
 }
 
+void FramePlanner::enableCostGrid(int columns, int rows) {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  grid_ = CostGrid::uniform(columns, rows);
+}
+
+bool FramePlanner::costGridEnabled() const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  return !grid_.factor.empty();
+}
+
+CostGrid FramePlanner::costGrid() const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  return grid_;
+}
+
+void FramePlanner::reportRegionCosts(int width, int height, const std::vector<RegionCost>& regions,
+                                     const CostGrid& planned_with) {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  if (grid_.factor.empty()) return;
+  // A new frame size (a viewer resized) starts the grid over: its cells
+  // would cover other pixels.
+  if (width != grid_width_ || height != grid_height_) {
+    grid_ = CostGrid::uniform(grid_.columns, grid_.rows);
+    grid_width_ = width;
+    grid_height_ = height;
+  }
+  const CostGrid& base =
+      planned_with.factor.size() == grid_.factor.size() && planned_with.columns == grid_.columns
+          ? planned_with
+          : CostGrid::uniform(grid_.columns, grid_.rows);  // planned before the grid knew this size
+  correctCostGrid(&grid_, base, Rect{0, 0, width, height}, regions);
+}
+
+CostGrid FramePlanner::gridFor(int width, int height) const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  if (grid_.factor.empty()) return {};
+  if (width != grid_width_ || height != grid_height_)  // not learnt for this size yet
+    return CostGrid::uniform(grid_.columns, grid_.rows);
+  return grid_;
+}
+
 namespace {
 // Fitted weights are in units of 1 ns of a client's time.
 constexpr double kUnitsPerMs = 1e6;
@@ -77,11 +118,15 @@ uint64_t units(double ms) {
 }
 }  // namespace
 
+bool FramePlanner::drawnRecently(uint32_t o) const {
+  uint32_t seen = drawn_in_[o].load(std::memory_order_relaxed);  // frame + 1, or 0
+  return seen != 0 && seen + kSeenFrames > frame_;
+}
+
 uint64_t FramePlanner::weightOf(uint32_t o, const CostModel& model) const {
   uint64_t tris = boxes_[o].weight;
   if (!feedback_.load(std::memory_order_relaxed)) return tris;
-  uint32_t seen = drawn_in_[o].load(std::memory_order_relaxed);  // frame + 1, or 0
-  bool recent = seen != 0 && seen + kSeenFrames > frame_;
+  bool recent = drawnRecently(o);
   if (model.fitted)
     return units(model.per_tested +
                  (recent ? model.per_drawn + model.per_triangle * double(tris) : 0.0));
@@ -89,14 +134,42 @@ uint64_t FramePlanner::weightOf(uint32_t o, const CostModel& model) const {
 }
 
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
-                                                const Camera& camera, int width, int height) const {
+                                                const Camera& camera, int width, int height,
+                                                const CostGrid& grid) const {
   FootprintProjector project(camera, width, height);
   CostModel model = costModel();
+  const Rect frame{0, 0, width, height};
+  // Fill per footprint pixel, in the fitted units (not rounded: a pixel is a
+  // few nanoseconds).
+  const double fill = model.fitted && feedback_.load(std::memory_order_relaxed)
+                          ? model.per_fill * kUnitsPerMs
+                          : 0.0;
   return projectInSlices(visible.size(), footprintThreads(visible.size()),
                          [&](size_t k, Footprint* f) {
                            uint32_t o = visible[k];
-                           return project(boxes_[o].box, weightOf(o, model), o, f);
+                           if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
+                           if (fill > 0 && drawnRecently(o)) f->fill = fill;
+                           if (!grid.factor.empty()) {
+                             double k = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
+                             f->weight = uint64_t(std::llround(double(f->weight) * k));
+                             f->fill *= k;
+                           }
+                           return true;
                          });
+}
+
+double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect region,
+                            const std::vector<uint32_t>& drawn) const {
+  FootprintProjector project(camera, width, height);
+  double pixels = 0;
+  Footprint f;
+  for (uint32_t o : drawn) {
+    if (o >= boxes_.size() || !project(boxes_[o].box, 0, o, &f)) continue;
+    int w = std::min(f.x1, region.x1()) - std::max(f.x0, region.x);
+    int h = std::min(f.y1, region.y1()) - std::max(f.y0, region.y);
+    if (w > 0 && h > 0) pixels += double(w) * h;
+  }
+  return pixels;
 }
 
 FramePlan planFrame(const Scene& scene, const Camera& camera, int width, int height, int clients) {
@@ -126,7 +199,8 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   std::vector<uint32_t> visible =
       cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
   auto t1 = Clock::now();
-  std::vector<Footprint> items = footprints(visible, camera, width, height);
+  plan.grid = gridFor(width, height);
+  std::vector<Footprint> items = footprints(visible, camera, width, height, plan.grid);
   auto tp = Clock::now();
   DivisionCosts costs;
   {
@@ -137,6 +211,8 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
     }
   }
   plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients, costs);
+  for (const Region& r : plan.regions)
+    plan.planned.push_back(double(r.weight) + costs.pixel_weight * double(r.rect.area()));
   auto t2 = Clock::now();
   plan.project_ms = msBetween(t1, tp);
   plan.cull_ms = msBetween(t0, t1);

@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "cost_grid.h"
 #include "cost_model.h"
 #include "cull.h"
 #include "divide.h"
@@ -23,6 +24,10 @@ struct FramePlan {
   double cull_ms = 0;
   double divide_ms = 0;   // footprints and division
   double project_ms = 0;  // the footprints alone (part of divide_ms)
+  // Per region: the weight the division balanced (its objects' weights and
+  // fill, plus its pixels' weight), for FramePlanner::reportRegionCosts.
+  std::vector<double> planned;
+  CostGrid grid;  // the cost grid the footprints were weighed with (empty: none)
 };
 
 // A frame as tiles (--balance tiles-*): the tiles in makeTiles order and, per
@@ -101,17 +106,35 @@ class FramePlanner {
   // The model and speeds the next plan uses (for logs and tests).
   CostModel costModel() const;
   std::vector<double> speeds() const;
+  // Measured cost correction (--cost-grid, cost_grid.h): from then on each
+  // footprint's weight is multiplied by the grid's mean factor under it, and
+  // each finished frame's regions (planned weight, measured time) correct the
+  // grid. Off until enabled. Thread-safe, like reportDrawn.
+  void enableCostGrid(int columns, int rows);
+  // `planned_with`: the frame's FramePlan::grid.
+  void reportRegionCosts(int width, int height, const std::vector<RegionCost>& regions,
+                         const CostGrid& planned_with);
+  bool costGridEnabled() const;
+  CostGrid costGrid() const;  // a copy, for logs and tests
+  static constexpr int kGridColumns = 32, kGridRows = 24;
+  // A client's fill for CostSample: the pixels of the footprints of `drawn`
+  // (object indices) inside `region`, overlaps counted once per object.
+  double fillOf(const Camera& camera, int width, int height, Rect region,
+                const std::vector<uint32_t>& drawn) const;
 
  private:
   // Footprints of the `visible` objects, in the same order (those covering no
   // pixel left out); computed on up to 8 threads for large lists.
+  // `grid`: the cost grid's factors to weigh by (empty: none).
   std::vector<Footprint> footprints(const std::vector<uint32_t>& visible, const Camera& camera,
-                                    int width, int height) const;
+                                    int width, int height, const CostGrid& grid = {}) const;
+  CostGrid gridFor(int width, int height) const;  // the grid to plan with (empty: none)
   struct Projected {
     Box3d box;
     uint64_t weight;
   };
   uint64_t weightOf(uint32_t object, const CostModel& model) const;
+  bool drawnRecently(uint32_t object) const;  // in the last kSeenFrames frames
   // Frustum culling: the objects in view, ascending; fills the counts.
   std::vector<uint32_t> cull(const Camera& camera, uint64_t* objects, uint64_t* triangles) const;
   const Scene& scene_;
@@ -126,6 +149,8 @@ class FramePlanner {
   std::vector<std::vector<CostSample>> cost_frames_;  // the last kCostFrames frames' samples
   CostModel model_;
   std::vector<double> speeds_;
+  CostGrid grid_;                         // empty: no correction
+  int grid_width_ = 0, grid_height_ = 0;  // the frame the grid was last corrected for
 };
 
 // One-off convenience: builds a planner and plans one frame.

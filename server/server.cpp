@@ -61,8 +61,12 @@ struct FrameRecord {
   Image image;                           // assembled RGBA, top row first
   std::vector<ClientStats> clients;      // per client, summed over its sub-frames
   std::vector<uint64_t> pixels;          // per client: pixels of its sub-frames
-  std::vector<int> owed;                 // per client: sub-frames given and not yet back
-  int expected = 0;                      // sub-frames that make up the frame
+  std::vector<double> fill;              // per client: FramePlanner::fillOf its sub-frames
+  std::vector<RegionCost> planned;       // per client (frustum division): region, planned weight
+  CostGrid grid;                         // the cost grid the frame was planned with
+  Camera camera;
+  std::vector<int> owed;  // per client: sub-frames given and not yet back
+  int expected = 0;       // sub-frames that make up the frame
   int received = 0;
 };
 
@@ -108,6 +112,7 @@ class Assembler {
     rec.image = Image::blank(opts_.view.width, opts_.view.height);
     rec.clients.resize(size_t(clients_));
     rec.pixels.resize(size_t(clients_));
+    rec.fill.resize(size_t(clients_));
     rec.owed = std::move(owed);
     rec.expected = expected;
     std::lock_guard<std::mutex> lock(mu_);
@@ -293,7 +298,12 @@ class Assembler {
     placeRgbRegion(rec->image, sf.region, rgb);
     accumulate(rec->clients[size_t(rank - 1)], sf.stats);
     rec->pixels[size_t(rank - 1)] += uint64_t(sf.region.area());
-    if (planner_) planner_->reportDrawn(sf.frame, sf.drawn);
+    if (planner_) {
+      planner_->reportDrawn(sf.frame, sf.drawn);
+      if (opts_.fitted_weights)
+        rec->fill[size_t(rank - 1)] +=
+            planner_->fillOf(rec->camera, rec->image.width, rec->image.height, sf.region, sf.drawn);
+    }
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     bool complete;
     {
@@ -316,6 +326,16 @@ class Assembler {
       rec = std::move(node.mapped());
     }
     if (planner_ && opts_.fitted_weights) planner_->reportCosts(costSamples(rec));
+    if (planner_ && opts_.cost_grid && rec.planned.size() == size_t(clients_)) {
+      // A slow client's time, scaled to a typical client's: the grid learns
+      // where the screen costs, the fitted speeds which client is slow.
+      std::vector<double> speeds = planner_->speeds();
+      std::vector<CostSample> samples = costSamples(rec);
+      for (size_t k = 0; k < samples.size(); ++k)
+        rec.planned[k].measured =
+            samples[k].ms * (speeds.size() == samples.size() ? speeds[k] : 1.0);
+      planner_->reportRegionCosts(rec.image.width, rec.image.height, rec.planned, rec.grid);
+    }
     auto tw = Clock::now();
     if (!opts_.out.empty()) writePng(opts_.out + "/" + frameFileName(frame), rec.image);
     auto done = Clock::now();
@@ -380,6 +400,7 @@ class Assembler {
       s.triangles = double(c.triangles);
       s.tested = double(c.queried);
       s.pixels = double(rec.pixels[k]);
+      s.fill = rec.fill[k];
       s.ms = cpu ? c.vis_cpu_ms + c.render_cpu_ms
                  : c.prepare_ms + c.retrieve_ms + c.load_ms + c.render_ms + c.readback_ms +
                        c.compress_ms;
@@ -651,6 +672,8 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   const size_t frames = hub ? size_t(UINT32_MAX) : path.points.size();
   FramePlanner planner(scene);
+  if (opts.cost_grid && opts.visible_weights)
+    planner.enableCostGrid(FramePlanner::kGridColumns, FramePlanner::kGridRows);
   Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
                       hub.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
@@ -696,6 +719,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       }
       FrameRecord rec;
       rec.started = Clock::now();
+      rec.camera = cam;
       planner.planningFrame(f);
       // Each job, with the client it goes to (-1: the dispatcher decides).
       std::vector<std::pair<int, FrameJob>> jobs;
@@ -705,6 +729,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.divide_ms = plan.divide_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
+        rec.grid = std::move(plan.grid);
+        for (int k = 0; k < clients; ++k)
+          rec.planned.push_back({plan.regions[size_t(k)].rect, plan.planned[size_t(k)], 0.0});
         for (int k = 0; k < clients; ++k) {
           jobs.push_back({k + 1, FrameJob{f,
                                           cam,
@@ -769,8 +796,20 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   runGuarded(planFrames, [&](const std::string& what) { assembler.markFailed("server: " + what); });
   assembler.plannerDone();
   assembling.join();
+  if (opts.fitted_weights) {  // what the division weighed, for the log
+    std::ostringstream m;
+    m << planner.costModel() << ", speeds";
+    for (double sp : planner.speeds()) m << " " << sp;
+    std::fprintf(stderr, "dmmr-render: --weights fitted: %s\n", m.str().c_str());
+  }
+
   if (hub) hub->stop();
   if (opts.progress) std::fprintf(stderr, "\n");
+  if (planner.costGridEnabled()) {  // what the division learnt, for the log
+    std::ostringstream m;
+    m << planner.costGrid();
+    std::fprintf(stderr, "dmmr-render: --cost-grid: %s\n", m.str().c_str());
+  }
   // Sub-frames still on their way complete frames that every client
   // finished before a failure.
   shutdownClients(comm, clients, opts.client_timeout_s,

@@ -27,7 +27,13 @@ struct ServerOptions {
   bool visible_weights = true;
   // Fit a cost model and each client's speed to what the clients report, and
   // divide by fitted time (FramePlanner::reportCosts); needs visible_weights.
-  bool fitted_weights = false;
+  // The default: with the fill term it balanced better than visible weights
+  // alone on every measured scene (docs/benchmarks.md).
+  bool fitted_weights = true;
+  // Correct the division's weights by where the clients' measured time went
+  // (FramePlanner::enableCostGrid, cost_grid.h); frustum division only.
+  // Moves split lines only: never changes a pixel.
+  bool cost_grid = false;
   // A client that sends nothing for this long while it owes a sub-frame has
   // died or hangs: the server names it and aborts the job (frames already
   // assembled stay on disk). Generous by default: a first frame that loads

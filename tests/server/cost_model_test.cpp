@@ -14,7 +14,7 @@ namespace {
 
 using test::Rng;
 
-const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, true};
+const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
 
 // `frames` x `clients` samples of random work, timed by kTruth at each
 // client's speed, with +-`noise` relative error.
@@ -29,6 +29,7 @@ std::vector<CostSample> samples(Rng& rng, int frames, int clients, double noise,
       s.triangles = rng.integer(1000, 60000);
       s.tested = rng.integer(50, 3000);
       s.pixels = rng.integer(10000, 800000);
+      s.fill = rng.integer(0, 3000000);  // overdraw: up to 4 layers of the largest region
       double speed = speeds.empty() ? 1.0 : speeds[size_t(k)];
       s.ms = predictMs(kTruth, s) / speed * (1 + noise * (rng.integer(-1000, 1000) / 1000.0));
       out.push_back(s);
@@ -44,6 +45,7 @@ TEST(CostModel, RecoversTheCoefficientsOfNoiselessSamples) {
   EXPECT_NEAR(m.per_triangle, kTruth.per_triangle, 1e-12);
   EXPECT_NEAR(m.per_tested, kTruth.per_tested, 1e-10);
   EXPECT_NEAR(m.per_pixel, kTruth.per_pixel, 1e-13);
+  EXPECT_NEAR(m.per_fill, kTruth.per_fill, 1e-13);
 }
 
 TEST(CostModel, PredictsNoisySamplesWithinTheirNoise) {
@@ -74,7 +76,29 @@ TEST(CostModel, CoefficientsAreNeverNegative) {
   }
   CostModel m = fitCostModel(s);
   ASSERT_TRUE(m.fitted);
-  for (double v : {m.per_drawn, m.per_triangle, m.per_tested, m.per_pixel}) EXPECT_GE(v, 0) << m;
+  for (double v : {m.per_drawn, m.per_triangle, m.per_tested, m.per_pixel, m.per_fill})
+    EXPECT_GE(v, 0) << m;
+}
+
+TEST(CostModel, FillIsToldApartFromThePixelsOfTheRegion) {
+  // Two regions of equal area, one empty and one under a few large objects:
+  // the time follows the fill, not the area.
+  std::vector<CostSample> s;
+  for (int i = 0; i < 24; ++i) {
+    CostSample c;
+    c.client = i % 2;
+    c.drawn = 5;
+    c.triangles = 300;
+    c.tested = 200;
+    c.pixels = 200000 + 1000 * (i % 5);
+    c.fill = c.client == 0 ? 0 : 400000 + 20000 * (i % 7);
+    c.ms = 1 + 0.000005 * c.pixels + 0.00002 * c.fill;
+    s.push_back(c);
+  }
+  CostModel m = fitCostModel(s);
+  ASSERT_TRUE(m.fitted);
+  EXPECT_NEAR(m.per_fill, 0.00002, 0.000002) << m;
+  EXPECT_LT(m.per_pixel, 0.00001) << m;
 }
 
 TEST(CostModel, TooFewOrDegenerateSamplesAreUnfitted) {

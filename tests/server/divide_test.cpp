@@ -533,6 +533,85 @@ TEST(DivideCosts, SpeedsStillTileTheFrameWithEveryOverlappingObject) {
     }
 }
 
+// ---- fill: weight spread over a footprint's pixels ----------------------------
+
+Footprint filled(uint32_t object, int x0, int x1, int y0, int y1, uint64_t weight, double fill) {
+  Footprint f = fp(object, x0, x1, y0, y1, weight);
+  f.fill = fill;
+  return f;
+}
+
+TEST(DivideFill, AFrameFillingObjectIsSplitInProportionToItsPixels) {
+  std::vector<Footprint> items = {filled(0, 0, 1024, 0, 64, 1, 1.0)};
+  std::vector<Region> r = divideFrame(items, Rect{0, 0, 1024, 64}, 2);
+  // Counted whole (weight 1) on both sides, its fill half and half.
+  EXPECT_EQ(r[0], (Region{Rect{0, 0, 512, 64}, {0}, 1 + 512 * 64}));
+  EXPECT_EQ(r[1], (Region{Rect{512, 0, 512, 64}, {0}, 1 + 512 * 64}));
+}
+
+TEST(DivideFill, FillPullsTheSplitTowardTheFilledSide) {
+  // A large object over the left half, its fill as heavy as the 512 small
+  // objects on the right: the line lands at the half. Without its fill the
+  // small objects alone would decide, and the left client would get them too.
+  std::vector<Footprint> items = {filled(0, 0, 512, 0, 64, 1, 1.0)};
+  for (int x = 512; x < 1024; ++x) items.push_back(fp(uint32_t(x), x, x + 1, 0, 64, 64));
+  Rect frame{0, 0, 1024, 64};
+  int withFill = divideFrame(items, frame, 2)[0].rect.w;
+  EXPECT_NEAR(withFill, 512, 1);
+  items[0].fill = 0;
+  EXPECT_GT(divideFrame(items, frame, 2)[0].rect.w, 700);
+}
+
+TEST(DivideFill, RegionWeightsAreTheObjectsWeightsAndTheFillInsideThem) {
+  Rng rng(41);
+  for (const Rect& frame : kFrames)
+    for (int clients : kClients) {
+      std::vector<Footprint> items = randomFootprints(rng, frame, 200, 80, 10);
+      for (Footprint& f : items) f.fill = rng.integer(0, 4) == 0 ? 0.0 : rng.integer(1, 50) / 7.0;
+      std::vector<Region> regions = divideFrame(items, frame, clients);
+      ASSERT_TRUE(test::tilesFrame(regions, frame, clients)) << frame << " " << clients;
+      for (const Region& reg : regions) {
+        uint64_t weight = 0;
+        double fill = 0;
+        for (const Footprint& f : items) {
+          bool overlaps = f.x0 < reg.rect.x1() && f.x1 > reg.rect.x && f.y0 < reg.rect.y1() &&
+                          f.y1 > reg.rect.y && !reg.rect.empty();
+          bool listed = std::binary_search(reg.objects.begin(), reg.objects.end(), f.object);
+          EXPECT_EQ(overlaps, listed) << reg.rect << " object " << f.object;
+          if (!listed) continue;
+          weight += f.weight;
+          int w = std::min(f.x1, reg.rect.x1()) - std::max(f.x0, reg.rect.x);
+          int h = std::min(f.y1, reg.rect.y1()) - std::max(f.y0, reg.rect.y);
+          fill += f.fill * std::max(0, w) * std::max(0, h);
+        }
+        EXPECT_EQ(reg.weight, weight + uint64_t(std::llround(fill))) << reg.rect;
+      }
+    }
+}
+
+TEST(DivideFill, RandomFilledObjectsBalanceTheirFill) {
+  // Fill alone (object weights 0): every region's fill within a quarter of
+  // the ideal share, as for plain weights on spread objects.
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    Rng rng(seed);
+    Rect frame{0, 0, 1024, 768};
+    std::vector<Footprint> items;
+    for (uint32_t i = 0; i < 400; ++i) {
+      int w = rng.integer(20, 300), h = rng.integer(20, 300);
+      int x = rng.integer(0, 1024 - w), y = rng.integer(0, 768 - h);
+      items.push_back(filled(i, x, x + w, y, y + h, 0, 1.0));
+    }
+    double total = 0;
+    for (const Footprint& f : items) total += double(f.x1 - f.x0) * (f.y1 - f.y0);
+    for (int clients : {2, 4, 8}) {
+      std::vector<Region> regions = divideFrame(items, frame, clients);
+      for (const Region& r : regions)
+        EXPECT_NEAR(double(r.weight) / (total / clients), 1.0, 0.25)
+            << "seed " << seed << " clients " << clients << " " << r;
+    }
+  }
+}
+
 TEST(DivideCosts, PixelWeightPullsTheSplitTowardEqualAreas) {
   // All the objects' weight sits in the left eighth: by objects alone one
   // client gets that sliver; with a heavy pixel weight the halves near equal.

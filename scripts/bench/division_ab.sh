@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Division settings side by side (issue 16): dmmr-render with each of
+# several option sets on the scaling suite's medium scenes (plants4, plants8,
+# monuments16 at 1024x768, 40 frames), with 1 client (the base of efficiency,
+# default options) and with each count in DMMR_BENCH_CLIENTS (default "4 16").
+# DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
+# (default: the weights visible and fitted, each without and with the cost
+# grid). Every run with LP_NUM_THREADS=0, so that a client's stage threads'
+# CPU time is its whole cost, free of waiting for one of this machine's cores
+# (the scaling suite's method). DMMR_BENCH_REPS rounds (default 2), the
+# configurations alternating in each; every frame is compared with
+# dmmr-reference's.
+# usage: scripts/bench/division_ab.sh   (writes out/bench/division-ab/, prints Markdown)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+bin=${DMMR_BIN:-build/bin}
+out=${DMMR_BENCH_OUT:-out/bench/division-ab}
+reps=${DMMR_BENCH_REPS:-2}
+counts=${DMMR_BENCH_CLIENTS:-4 16}
+scenes=${DMMR_BENCH_SCENES:-plants4 plants8 monuments16}
+default_configs="visible:--weights visible --cost-grid off;visible+grid:--weights visible --cost-grid on;\
+fitted:--weights fitted --cost-grid off;fitted+grid:--weights fitted --cost-grid on"
+IFS=';' read -r -a sets <<<"${DMMR_BENCH_CONFIGS:-$default_configs}"
+w=1024
+h=768
+mkdir -p "$out"
+# shellcheck source=lib.sh
+source scripts/bench/lib.sh
+scene plants4 replicate --of plant --copies 4 --triangles 400000 --geodes 5000 --seed 1 --frames 40
+scene plants8 replicate --of plant --copies 8 --triangles 400000 --geodes 5000 --seed 1 --frames 40
+scene monuments16 replicate --of monument --copies 16 --triangles 120000 --geodes 500 --seed 1 --frames 40
+
+for s in $scenes; do
+  if [ ! -f "$out/$s-ref/frame_000039.png" ]; then
+    rm -rf "$out/$s-ref"
+    $bin/dmmr-reference --scene out/bench/$s.scene --walkthrough out/bench/$s.generated.path \
+      --out "$out/$s-ref" --width $w --height $h --no-progress >/dev/null
+  fi
+done
+
+configs=("1|base|")  # clients|label|options
+for n in $counts; do
+  for set in "${sets[@]}"; do configs+=("$n|${set%%:*}|${set#*:}"); done
+done
+for r in $(seq 1 "$reps"); do
+  for s in $scenes; do
+    for c in "${configs[@]}"; do
+      IFS='|' read -r n label opts <<<"$c"
+      run=$out/$s-c$n-$label-r$r
+      rm -rf "$run"
+      # shellcheck disable=SC2086 # opts is a list of options
+      LP_NUM_THREADS=0 "${launch[@]}" -np $((n + 1)) -x LP_NUM_THREADS $bin/dmmr-render \
+        --scene out/bench/$s.scene --walkthrough out/bench/$s.generated.path --out "$run" \
+        --stats "$run.csv" --width $w --height $h --no-progress $opts >/dev/null 2>"$run.log"
+      diff_frames "$out/$s-ref" "$run" "$run.cmp.csv"
+    done
+  done
+done
+python3 scripts/bench/division_ab_report.py "$out" "$reps" "$scenes" "${configs[@]}"
