@@ -325,12 +325,14 @@ class Assembler {
       auto node = pending_.extract(frame);
       rec = std::move(node.mapped());
     }
-    if (planner_ && opts_.fitted_weights) planner_->reportCosts(costSamples(rec));
-    if (planner_ && opts_.cost_grid && rec.planned.size() == size_t(clients_)) {
+    const bool grid = planner_ && opts_.cost_grid && rec.planned.size() == size_t(clients_);
+    std::vector<CostSample> samples;
+    if (planner_ && (opts_.fitted_weights || grid)) samples = costSamples(rec);
+    if (planner_ && opts_.fitted_weights) planner_->reportCosts(samples);
+    if (grid) {
       // A slow client's time, scaled to a typical client's: the grid learns
       // where the screen costs, the fitted speeds which client is slow.
       std::vector<double> speeds = planner_->speeds();
-      std::vector<CostSample> samples = costSamples(rec);
       for (size_t k = 0; k < samples.size(); ++k)
         rec.planned[k].measured =
             samples[k].ms * (speeds.size() == samples.size() ? speeds[k] : 1.0);

@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Division settings side by side (issue 16): dmmr-render with each of
 # several option sets on the scaling suite's medium scenes (plants4, plants8,
-# monuments16 at 1024x768, 40 frames), with 1 client (the base of efficiency,
-# default options) and with each count in DMMR_BENCH_CLIENTS (default "4 16").
+# monuments16 at 1024x768, 40 frames; DMMR_BENCH_SCENES may also name
+# skullmesh4, issue 15's four 2.5M-triangle skull meshes in clusters, at
+# 512x512 along walkthroughs/skullmesh4.path), with 1 client (the base of
+# efficiency, default options) and with each count in DMMR_BENCH_CLIENTS
+# (default "4 16").
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
 # (default: the weights visible and fitted, each without and with the cost
 # grid). Every run with LP_NUM_THREADS=0, so that a client's stage threads'
@@ -21,20 +24,41 @@ scenes=${DMMR_BENCH_SCENES:-plants4 plants8 monuments16}
 default_configs="visible:--weights visible --cost-grid off;visible+grid:--weights visible --cost-grid on;\
 fitted:--weights fitted --cost-grid off;fitted+grid:--weights fitted --cost-grid on"
 IFS=';' read -r -a sets <<<"${DMMR_BENCH_CONFIGS:-$default_configs}"
-w=1024
-h=768
+models=${DMMR_MODELS:-../shared/models}
 mkdir -p "$out"
 # shellcheck source=lib.sh
 source scripts/bench/lib.sh
-scene plants4 replicate --of plant --copies 4 --triangles 400000 --geodes 5000 --seed 1 --frames 40
-scene plants8 replicate --of plant --copies 8 --triangles 400000 --geodes 5000 --seed 1 --frames 40
-scene monuments16 replicate --of monument --copies 16 --triangles 120000 --geodes 500 --seed 1 --frames 40
+# Sets sc, path, w and h for scene $1, making it when missing.
+scene_of() {
+  case $1 in
+    skullmesh4)
+      [ -f out/bench/skullmesh4.osgb ] || $bin/dmmr-scenegen replicate \
+        --input "$models/skull/skull.obj" --subdivide 5 --copies 4 --path around --frames 48 \
+        -o out/bench/skullmesh4.osgb --walkthrough out/bench/skullmesh4.generated.path >/dev/null
+      [ -d out/bench/skullmesh4.scene ] || $bin/dmmr-preprocess out/bench/skullmesh4.osgb \
+        -o out/bench/skullmesh4.scene --no-progress >/dev/null
+      sc=out/bench/skullmesh4.scene path=walkthroughs/skullmesh4.path w=512 h=512
+      ;;
+    plants4 | plants8)
+      scene "$1" replicate --of plant --copies "${1#plants}" --triangles 400000 --geodes 5000 \
+        --seed 1 --frames 40
+      sc=out/bench/$1.scene path=out/bench/$1.generated.path w=1024 h=768
+      ;;
+    monuments16)
+      scene monuments16 replicate --of monument --copies 16 --triangles 120000 --geodes 500 \
+        --seed 1 --frames 40
+      sc=out/bench/$1.scene path=out/bench/$1.generated.path w=1024 h=768
+      ;;
+    *) echo "division_ab.sh: unknown scene $1" >&2 && exit 1 ;;
+  esac
+}
 
 for s in $scenes; do
-  if [ ! -f "$out/$s-ref/frame_000039.png" ]; then
+  scene_of "$s"
+  if [ ! -f "$out/$s-ref/frame_000001.png" ]; then
     rm -rf "$out/$s-ref"
-    $bin/dmmr-reference --scene out/bench/$s.scene --walkthrough out/bench/$s.generated.path \
-      --out "$out/$s-ref" --width $w --height $h --no-progress >/dev/null
+    $bin/dmmr-reference --scene "$sc" --walkthrough "$path" --out "$out/$s-ref" --width $w \
+      --height $h --no-progress >/dev/null
   fi
 done
 
@@ -44,14 +68,15 @@ for n in $counts; do
 done
 for r in $(seq 1 "$reps"); do
   for s in $scenes; do
+    scene_of "$s"
     for c in "${configs[@]}"; do
       IFS='|' read -r n label opts <<<"$c"
       run=$out/$s-c$n-$label-r$r
       rm -rf "$run"
       # shellcheck disable=SC2086 # opts is a list of options
       LP_NUM_THREADS=0 "${launch[@]}" -np $((n + 1)) -x LP_NUM_THREADS $bin/dmmr-render \
-        --scene out/bench/$s.scene --walkthrough out/bench/$s.generated.path --out "$run" \
-        --stats "$run.csv" --width $w --height $h --no-progress $opts >/dev/null 2>"$run.log"
+        --scene "$sc" --walkthrough "$path" --out "$run" --stats "$run.csv" --width $w \
+        --height $h --no-progress $opts >/dev/null 2>"$run.log"
       diff_frames "$out/$s-ref" "$run" "$run.cmp.csv"
     done
   done
