@@ -135,7 +135,8 @@ uint64_t FramePlanner::weightOf(uint32_t o, const CostModel& model) const {
 
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
                                                 const Camera& camera, int width, int height,
-                                                const CostGrid& grid) const {
+                                                const CostGrid& grid,
+                                                double* spawned_cpu_ms) const {
   FootprintProjector project(camera, width, height);
   CostModel model = costModel();
   const Rect frame{0, 0, width, height};
@@ -144,18 +145,20 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
   const double fill = model.fitted && feedback_.load(std::memory_order_relaxed)
                           ? model.per_fill * kUnitsPerMs
                           : 0.0;
-  return projectInSlices(visible.size(), footprintThreads(visible.size()),
-                         [&](size_t k, Footprint* f) {
-                           uint32_t o = visible[k];
-                           if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
-                           if (fill > 0 && drawnRecently(o)) f->fill = fill;
-                           if (!grid.factor.empty()) {
-                             double k = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
-                             f->weight = uint64_t(std::llround(double(f->weight) * k));
-                             f->fill *= k;
-                           }
-                           return true;
-                         });
+  return projectInSlices(
+      visible.size(), footprintThreads(visible.size()),
+      [&](size_t k, Footprint* f) {
+        uint32_t o = visible[k];
+        if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
+        if (fill > 0 && drawnRecently(o)) f->fill = fill;
+        if (!grid.factor.empty()) {
+          double k = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
+          f->weight = uint64_t(std::llround(double(f->weight) * k));
+          f->fill *= k;
+        }
+        return true;
+      },
+      spawned_cpu_ms);
 }
 
 double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect region,
@@ -195,12 +198,14 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients) const {
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
+  const double c0 = threadCpuMs();
   auto t0 = Clock::now();
   std::vector<uint32_t> visible =
       cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
   auto t1 = Clock::now();
   plan.grid = gridFor(width, height);
-  std::vector<Footprint> items = footprints(visible, camera, width, height, plan.grid);
+  double spawned = 0;
+  std::vector<Footprint> items = footprints(visible, camera, width, height, plan.grid, &spawned);
   auto tp = Clock::now();
   DivisionCosts costs;
   {
@@ -217,6 +222,7 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   plan.project_ms = msBetween(t1, tp);
   plan.cull_ms = msBetween(t0, t1);
   plan.divide_ms = msBetween(t1, t2);
+  plan.plan_cpu_ms = threadCpuMs() - c0 + spawned;
   return plan;
 }
 
@@ -224,6 +230,7 @@ TilePlan FramePlanner::planTiles(const Camera& camera, int width, int height, in
                                  int tile_h) const {
   using Clock = std::chrono::steady_clock;
   TilePlan plan;
+  const double c0 = threadCpuMs();
   auto t0 = Clock::now();
   std::vector<uint32_t> visible =
       cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
@@ -231,10 +238,13 @@ TilePlan FramePlanner::planTiles(const Camera& camera, int width, int height, in
   Rect frame{0, 0, width, height};
   plan.tiles = makeTiles(frame, tile_w, tile_h);
   plan.columns = (width + tile_w - 1) / tile_w;
-  plan.objects = objectsPerTile(footprints(visible, camera, width, height), frame, tile_w, tile_h);
+  double spawned = 0;
+  plan.objects = objectsPerTile(footprints(visible, camera, width, height, {}, &spawned), frame,
+                                tile_w, tile_h);
   auto t2 = Clock::now();
   plan.cull_ms = msBetween(t0, t1);
   plan.divide_ms = msBetween(t1, t2);
+  plan.plan_cpu_ms = threadCpuMs() - c0 + spawned;
   return plan;
 }
 

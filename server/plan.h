@@ -11,6 +11,7 @@
 
 #include "cost_grid.h"
 #include "cost_model.h"
+#include "cpu_time.h"
 #include "cull.h"
 #include "divide.h"
 #include "scene.h"
@@ -24,6 +25,10 @@ struct FramePlan {
   double cull_ms = 0;
   double divide_ms = 0;   // footprints and division
   double project_ms = 0;  // the footprints alone (part of divide_ms)
+  // CPU time of culling, footprints and division, summed over the threads
+  // that did them: the server's cost, which unlike the wall times above does
+  // not count waiting for a core.
+  double plan_cpu_ms = 0;
   // Per region: the weight the division balanced (its objects' weights and
   // fill, plus its pixels' weight), for FramePlanner::reportRegionCosts.
   std::vector<double> planned;
@@ -39,7 +44,8 @@ struct TilePlan {
   uint64_t objects_in_frustum = 0;
   uint64_t triangles_in_frustum = 0;
   double cull_ms = 0;
-  double divide_ms = 0;  // footprints and the per-tile lists
+  double divide_ms = 0;    // footprints and the per-tile lists
+  double plan_cpu_ms = 0;  // as FramePlan's
 };
 
 // Threads for projecting `n` footprints: projection is independent per
@@ -52,20 +58,28 @@ inline size_t footprintThreads(size_t n) {
 // The footprints of items 0..n-1, in item order: `project(k, &f)` fills f
 // and says whether item k has one. Slices 1..threads-1 run on threads
 // spawned for the call, slice 0 on the caller's. Requires threads >= 1.
+// `spawned_cpu_ms` (optional): gets the spawned threads' CPU time added (the
+// caller's own is on its thread's clock).
 template <typename Project>
-std::vector<Footprint> projectInSlices(size_t n, size_t threads, const Project& project) {
+std::vector<Footprint> projectInSlices(size_t n, size_t threads, const Project& project,
+                                       double* spawned_cpu_ms = nullptr) {
   std::vector<std::vector<Footprint>> parts(threads);
+  std::vector<double> cpu(threads, 0.0);
   auto work = [&](size_t t) {
+    double c0 = t > 0 ? threadCpuMs() : 0.0;
     size_t begin = n * t / threads, end = n * (t + 1) / threads;
     parts[t].reserve(end - begin);
     Footprint f;
     for (size_t k = begin; k < end; ++k)
       if (project(k, &f)) parts[t].push_back(f);
+    if (t > 0) cpu[t] = threadCpuMs() - c0;
   };
   std::vector<std::thread> pool;
   for (size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
   work(0);
   for (auto& th : pool) th.join();
+  if (spawned_cpu_ms)
+    for (double c : cpu) *spawned_cpu_ms += c;
   std::vector<Footprint> items = std::move(parts[0]);
   for (size_t t = 1; t < threads; ++t) items.insert(items.end(), parts[t].begin(), parts[t].end());
   return items;
@@ -126,8 +140,10 @@ class FramePlanner {
   // Footprints of the `visible` objects, in the same order (those covering no
   // pixel left out); computed on up to 8 threads for large lists.
   // `grid`: the cost grid's factors to weigh by (empty: none).
+  // `spawned_cpu_ms` as for projectInSlices.
   std::vector<Footprint> footprints(const std::vector<uint32_t>& visible, const Camera& camera,
-                                    int width, int height, const CostGrid& grid = {}) const;
+                                    int width, int height, const CostGrid& grid = {},
+                                    double* spawned_cpu_ms = nullptr) const;
   CostGrid gridFor(int width, int height) const;  // the grid to plan with (empty: none)
   struct Projected {
     Box3d box;

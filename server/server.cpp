@@ -56,6 +56,7 @@ double msBetween(Clock::time_point a, Clock::time_point b) {
 struct FrameRecord {
   Clock::time_point started;
   double cull_ms = 0, divide_ms = 0, send_ms = 0;
+  double plan_cpu_ms = 0;  // FramePlan::plan_cpu_ms
   uint64_t objects = 0, triangles = 0;
   std::vector<uint64_t> region_objects;  // as planned, per client
   Image image;                           // assembled RGBA, top row first
@@ -73,7 +74,7 @@ struct FrameRecord {
 // The stats CSV's header line for `clients` clients.
 std::string statsHeader(int clients) {
   std::string h =
-      "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,"
+      "frame,frame_ms,latency_ms,cull_ms,divide_ms,send_ms,assemble_ms,write_ms,plan_cpu_ms,"
       "objects_in_frustum,triangles_in_frustum";
   for (int k = 1; k <= clients; ++k)
     for (const char* c :
@@ -346,7 +347,8 @@ class Assembler {
     row.precision(3);
     row << frame << "," << msBetween(last_done_, done) << "," << msBetween(rec.started, done) << ","
         << rec.cull_ms << "," << rec.divide_ms << "," << rec.send_ms << "," << assemble_ms_[frame]
-        << "," << msBetween(tw, done) << "," << rec.objects << "," << rec.triangles;
+        << "," << msBetween(tw, done) << "," << rec.plan_cpu_ms << "," << rec.objects << ","
+        << rec.triangles;
     for (const ClientStats& c : rec.clients)
       row << "," << c.objects << "," << c.occluders << "," << c.queried << "," << c.visible << ","
           << c.triangles << "," << c.prepare_ms << "," << c.retrieve_ms << "," << c.pass_ms << ","
@@ -729,6 +731,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         FramePlan plan = planner.plan(cam, v.width, v.height, clients);
         rec.cull_ms = plan.cull_ms;
         rec.divide_ms = plan.divide_ms;
+        rec.plan_cpu_ms = plan.plan_cpu_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         rec.grid = std::move(plan.grid);
@@ -751,6 +754,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
         rec.cull_ms = plan.cull_ms;
         rec.divide_ms = plan.divide_ms;
+        rec.plan_cpu_ms = plan.plan_cpu_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         auto job = [&](size_t t) {

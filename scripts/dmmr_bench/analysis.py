@@ -76,6 +76,15 @@ def transfer_ms(nbytes):
     return nbytes * 8 / (LINK_GBPS * 1e9) * 1e3
 
 
+def server_work(r, cost=None):
+    """The server's culling and division in the frame: by `cost` "cpu" the CPU
+    time of the threads that did them (plan_cpu_ms; CSVs from before it was
+    recorded fall back to the wall times), else their wall times."""
+    if (cost or COST) == "cpu" and r.get("plan_cpu_ms") not in (None, ""):
+        return num(r, "plan_cpu_ms")
+    return num(r, "cull_ms") + num(r, "divide_ms")
+
+
 def client_work(r, k, cost=None):
     """Client k's own work in the frame, by `cost` (default COST)."""
     if (cost or COST) == "cpu":
@@ -97,7 +106,7 @@ def derived_frame(r, n, cost=None):
     retrieve, load, render, read back, compress) plus its sub-frame's transfer
     at LINK_GBPS; no overlap between frames assumed. Waiting (pass_ms, send_ms)
     is left out."""
-    server = num(r, "cull_ms") + num(r, "divide_ms")
+    server = server_work(r, cost)
     slowest = max(client_work(r, k, cost) + transfer_ms(num(r, f"c{k}_bytes_sent"))
                   for k in range(1, n + 1))
     return server + slowest
@@ -106,7 +115,7 @@ def derived_frame(r, n, cost=None):
 def derived_pipelined(r, n):
     """Same, with the stages overlapped as the pipeline does on a real cluster
     (two contexts per client): the slowest of server, visibility and render stage."""
-    server = num(r, "cull_ms") + num(r, "divide_ms")
+    server = server_work(r)
     vis = max(stage_work(r, k, "vis") for k in range(1, n + 1))
     ren = max(stage_work(r, k, "render") + transfer_ms(num(r, f"c{k}_bytes_sent"))
               for k in range(1, n + 1))

@@ -132,7 +132,8 @@ def main(argv=None):
         "load_average_start": [round(x, 2) for x in load_start],
         "load_average_end": [round(x, 2) for x in os.getloadavg()],
         "load_average_earlier": load_earlier,
-        "derived_definition": "per frame: cull_ms + divide_ms + max over clients of (the client's own work "
+        "derived_definition": "per frame: the server's cull and divide (plan_cpu_ms with --cost cpu, else "
+                              "cull_ms + divide_ms) + max over clients of (the client's own work "
                               "+ bytes_sent at link_gbps); mean over frames 1..; a client's work is its "
                               + analysis.COST_DEFINITIONS[cost],
     }

@@ -206,8 +206,10 @@ def method_section(meta):
         "- **Derived frame time:** per frame, the server's culling and division plus, for the slowest client, its "
         f"cost plus the transfer of its compressed sub-frame over a nominal {meta.get('link_gbps', 1.0):g} Gbit/s "
         "link (one machine per client, no overlap between frames; hand-over waits left out); the mean over frames "
-        "1.. (frame 0 fills the caches). The server's culling and division are wall times (the CSV has no server "
-        "CPU time), so with more processes than cores they include waiting for a core. "
+        "1.. (frame 0 fills the caches). With `--cost cpu` the server's culling and division are the CPU time of "
+        "the threads that did them (`plan_cpu_ms`; CSVs without it fall back to the wall times "
+        "`cull_ms + divide_ms`, which with more processes than cores include waiting for a core); otherwise "
+        "their wall times. "
         "**Efficiency** is tau_1 / (S tau_S) and **speed-up** tau_1 / tau_S, "
         "both over derived times of the same scene. **max/mean** is, per frame, the slowest client's cost over "
         "the mean client cost, median over frames.",

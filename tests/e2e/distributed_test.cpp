@@ -119,7 +119,7 @@ TEST_P(Distributed, FramesArePixelIdenticalToTheReference) {
   // others) and one row per frame, in order.
   std::vector<test::CsvRow> rows = test::readCsv(out + ".csv");
   ASSERT_EQ(rows.size(), 4u);
-  for (const char* col : {"frame", "frame_ms", "cull_ms", "divide_ms", "assemble_ms",
+  for (const char* col : {"frame", "frame_ms", "cull_ms", "divide_ms", "assemble_ms", "plan_cpu_ms",
                           "objects_in_frustum", "triangles_in_frustum"})
     EXPECT_TRUE(rows[0].contains(col)) << col;
   EXPECT_TRUE(rows[0].contains("c" + std::to_string(clients) + "_bytes_sent"));

@@ -162,6 +162,55 @@ TEST(PlanFrame, OneClientGetsTheWholeFrameAndEveryVisibleObject) {
   EXPECT_EQ(plan.objects_in_frustum, scene.objects.size());
 }
 
+TEST(PlanFrame, ReportsTheCpuTimeOfItsThreadsAndThePlannedWeights) {
+  // A plan on one thread (few objects: no projection threads) cannot use more
+  // CPU than the wall time it took (0.2 ms of slack: the clocks are read a
+  // few statements apart), and does use some. The planned weight of each
+  // region is what the division balanced: its weight, no pixel term here.
+  Rng rng(35);
+  Scene scene = gridScene(rng, 30, 30);
+  ASSERT_EQ(footprintThreads(scene.objects.size()), 1u);
+  Camera camera;
+  camera.eye = {60, 200, -60};
+  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
+  camera.fovy_deg = 50;
+  for (int clients : {1, 4, 16}) {
+    FramePlan plan = planFrame(scene, camera, 512, 512, clients);
+    EXPECT_GT(plan.plan_cpu_ms, 0) << clients;
+    EXPECT_LE(plan.plan_cpu_ms, plan.cull_ms + plan.divide_ms + 0.2) << clients;
+    ASSERT_EQ(plan.planned.size(), plan.regions.size());
+    for (size_t k = 0; k < plan.regions.size(); ++k)
+      EXPECT_EQ(plan.planned[k], double(plan.regions[k].weight)) << clients << " region " << k;
+    EXPECT_TRUE(plan.grid.factor.empty());  // no cost grid unless enabled
+  }
+}
+
+TEST(FramePlanner, TheCostGridIsUsedOnlyForTheFrameSizeItLearnt) {
+  Rng rng(36);
+  Scene scene = gridScene(rng, 10, 10);
+  FramePlanner planner(scene);
+  Camera camera;
+  camera.eye = {18, 200, -18};
+  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
+  camera.fovy_deg = 40;
+  planner.enableCostGrid(4, 4);
+  FramePlan first = planner.plan(camera, 256, 256, 2);
+  EXPECT_EQ(first.grid, CostGrid::uniform(4, 4));
+  // Client 1 took 3x its planned share: its cells weigh more from now on.
+  std::vector<RegionCost> fb;
+  for (size_t k = 0; k < first.regions.size(); ++k)
+    fb.push_back({first.regions[k].rect, first.planned[k], k == 0 ? 3.0 : 1.0});
+  planner.reportRegionCosts(256, 256, fb, first.grid);
+  FramePlan second = planner.plan(camera, 256, 256, 2);
+  EXPECT_NE(second.grid, CostGrid::uniform(4, 4));
+  EXPECT_EQ(second.grid, planner.costGrid());
+  // Client 1's region shrinks by pixels toward the measured balance.
+  EXPECT_LT(second.regions[0].rect.area(), first.regions[0].rect.area())
+      << first.regions[0].rect << " then " << second.regions[0].rect;
+  // Another frame size starts from a uniform grid.
+  EXPECT_EQ(planner.plan(camera, 300, 200, 2).grid, CostGrid::uniform(4, 4));
+}
+
 TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
   Rng rng(35);
   Scene scene = gridScene(rng, 10, 10);
