@@ -152,9 +152,9 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
         if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
         if (fill > 0 && drawnRecently(o)) f->fill = fill;
         if (!grid.factor.empty()) {
-          double k = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
-          f->weight = uint64_t(std::llround(double(f->weight) * k));
-          f->fill *= k;
+          double factor = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
+          f->weight = uint64_t(std::llround(double(f->weight) * factor));
+          f->fill *= factor;
         }
         return true;
       },
