@@ -15,6 +15,12 @@ std::ostream& operator<<(std::ostream& os, const Footprint& f) {
   return os << "]";
 }
 
+double overlapArea(const Footprint& f, Rect rect) {
+  double w = std::min(f.x1, rect.x1()) - std::max(f.x0, rect.x);
+  double h = std::min(f.y1, rect.y1()) - std::max(f.y0, rect.y);
+  return w > 0 && h > 0 ? w * h : 0.0;
+}
+
 std::ostream& operator<<(std::ostream& os, const Region& r) {
   return os << "region[" << r.rect << " objects " << r.objects.size() << " weight " << r.weight
             << "]";
@@ -158,13 +164,6 @@ struct Span {  // a footprint's extent along the split axis
 
 Span spanOf(const Footprint& f, bool vertical) {
   return vertical ? Span{f.x0, f.x1} : Span{f.y0, f.y1};
-}
-
-// Pixels of the footprint inside `rect`.
-double overlapArea(const Footprint& f, Rect rect) {
-  double w = std::min(f.x1, rect.x1()) - std::max(f.x0, rect.x);
-  double h = std::min(f.y1, rect.y1()) - std::max(f.y0, rect.y);
-  return w > 0 && h > 0 ? w * h : 0.0;
 }
 
 struct Split {

@@ -25,6 +25,9 @@ struct Footprint {
 };
 std::ostream& operator<<(std::ostream& os, const Footprint& f);
 
+// Pixels of the footprint's rectangle inside `rect` (0 when they do not meet).
+double overlapArea(const Footprint& f, Rect rect);
+
 // The conservative footprint of an object's bounds (its box, clipped to the
 // sphere's box where that is tighter, clipped at the near plane) for a
 // width x height frame: every pixel the object can cover, plus a one-pixel

@@ -167,10 +167,7 @@ double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect re
   double pixels = 0;
   Footprint f;
   for (uint32_t o : drawn) {
-    if (o >= boxes_.size() || !project(boxes_[o].box, 0, o, &f)) continue;
-    int w = std::min(f.x1, region.x1()) - std::max(f.x0, region.x);
-    int h = std::min(f.y1, region.y1()) - std::max(f.y0, region.y);
-    if (w > 0 && h > 0) pixels += double(w) * h;
+    if (o < boxes_.size() && project(boxes_[o].box, 0, o, &f)) pixels += overlapArea(f, region);
   }
   return pixels;
 }

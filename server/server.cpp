@@ -802,15 +802,14 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   runGuarded(planFrames, [&](const std::string& what) { assembler.markFailed("server: " + what); });
   assembler.plannerDone();
   assembling.join();
-  if (opts.fitted_weights) {  // what the division weighed, for the log
+  if (hub) hub->stop();
+  if (opts.progress) std::fprintf(stderr, "\n");  // ends the progress line before the logs
+  if (opts.fitted_weights) {                      // what the division weighed, for the log
     std::ostringstream m;
     m << planner.costModel() << ", speeds";
     for (double sp : planner.speeds()) m << " " << sp;
     std::fprintf(stderr, "dmmr-render: --weights fitted: %s\n", m.str().c_str());
   }
-
-  if (hub) hub->stop();
-  if (opts.progress) std::fprintf(stderr, "\n");
   if (planner.costGridEnabled()) {  // what the division learnt, for the log
     std::ostringstream m;
     m << planner.costGrid();

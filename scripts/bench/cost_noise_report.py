@@ -4,22 +4,23 @@ runs and the imbalance that this noise alone gives within a frame; the cost
 is the stage threads' CPU time (and, for comparison, the stages' wall time).
 Frames 1.. (frame 0 loads geometry).
 usage: cost_noise_report.py OUT REPS label|clients|options..."""
-import csv
 import statistics as st
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from dmmr_bench.analysis import client_work, read_csv  # noqa: E402
+
 out, reps = Path(sys.argv[1]), int(sys.argv[2])
 configs = [c.split("|")[:2] for c in sys.argv[3:]]
-STAGES = ("prepare_ms", "retrieve_ms", "load_ms", "render_ms", "readback_ms", "compress_ms")
 
 
 def cpu(r, k):
-    return float(r[f"c{k}_vis_cpu_ms"]) + float(r[f"c{k}_render_cpu_ms"])
+    return client_work(r, k, "cpu")
 
 
 def wall(r, k):
-    return sum(float(r[f"c{k}_{s}"]) for s in STAGES)
+    return client_work(r, k, "wall")
 
 
 print("| configuration | clients | same work in every run | cost | mean client cost ms (median over runs) "
@@ -28,7 +29,7 @@ print("| configuration | clients | same work in every run | cost | mean client c
 print("|---|---|---|---|---|---|---|---|")
 for label, n in configs:
     n = int(n)
-    runs = [list(csv.DictReader(open(out / f"{label}-r{r}.csv")))[1:] for r in range(1, reps + 1)]
+    runs = [read_csv(out / f"{label}-r{r}.csv")[1:] for r in range(1, reps + 1)]
     frames = min(len(x) for x in runs)
     same = all(runs[0][f][f"c{k}_triangles"] == x[f][f"c{k}_triangles"] and
                runs[0][f][f"c{k}_queried"] == x[f][f"c{k}_queried"]

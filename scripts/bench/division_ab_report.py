@@ -7,10 +7,12 @@ the clients' mean CPU times over the walk (imbalance that lasts), the summed
 client CPU time against 1 client (work inflation), and the worst differing
 pixels against the reference over every round.
 usage: division_ab_report.py OUT REPS "SCENES" clients|label|options..."""
-import csv
 import statistics as st
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from dmmr_bench.analysis import client_work, read_csv, server_work  # noqa: E402
 
 out, reps, scenes = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3].split()
 configs = [c.split("|")[:2] for c in sys.argv[4:]]
@@ -18,25 +20,19 @@ FROM = 1
 
 
 def cost(r, k):
-    return float(r[f"c{k}_vis_cpu_ms"]) + float(r[f"c{k}_render_cpu_ms"])
-
-
-def server(r):  # the planning threads' CPU time where the CSV has it, else cull + divide wall
-    if r.get("plan_cpu_ms"):
-        return float(r["plan_cpu_ms"])
-    return float(r["cull_ms"]) + float(r["divide_ms"])
+    return client_work(r, k, "cpu")
 
 
 def run(scene, n, label, rep):
     base = out / f"{scene}-c{n}-{label}-r{rep}"
-    rows = list(csv.DictReader(open(f"{base}.csv")))[FROM:]
+    rows = read_csv(f"{base}.csv")[FROM:]
     ks = range(1, n + 1)
-    derived = st.fmean(server(r) + max(cost(r, k) for k in ks) for r in rows)
+    derived = st.fmean(server_work(r, "cpu") + max(cost(r, k) for k in ks) for r in rows)
     mm = st.median(max(cost(r, k) for k in ks) / st.fmean(cost(r, k) for k in ks) for r in rows)
     means = [st.fmean(cost(r, k) for r in rows) for k in ks]
     lasting = max(means) / st.fmean(means)
     total = sum(means)
-    diff = max(int(r["differing_pixels"]) for r in csv.DictReader(open(f"{base}.cmp.csv")))
+    diff = max(int(r["differing_pixels"]) for r in read_csv(f"{base}.cmp.csv"))
     return derived, mm, lasting, total, diff
 
 
