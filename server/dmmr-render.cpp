@@ -81,6 +81,10 @@ int main(int argc, char** argv) {
                  "measured times; the default), visible (triangles drawn lately) or frustum "
                  "(all triangles)")
       ->check(CLI::IsMember({"visible", "fitted", "frustum"}));
+  app.add_option("--division-log", s.division_log,
+                 "frustum division: a CSV with one row per client and frame, the server's "
+                 "forecast for the region and the weight it balanced beside what the client "
+                 "reported (docs/benchmarks.md, issue 16)");
   dmmr::addSwitchOption(app, "--cost-grid", &s.cost_grid,
                         "frustum division: on (the weights are corrected, cell by cell of the "
                         "screen, by where the clients' measured time went in past frames; with "

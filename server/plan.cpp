@@ -172,6 +172,27 @@ double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect re
   return pixels;
 }
 
+RegionForecast FramePlanner::forecast(const Camera& camera, int width, int height,
+                                      const Region& region) const {
+  RegionForecast f;
+  f.objects = region.objects.size();
+  std::vector<uint32_t> lately;
+  if (feedback_.load(std::memory_order_relaxed))
+    for (uint32_t o : region.objects)
+      if (o < boxes_.size() && drawnRecently(o)) {
+        lately.push_back(o);
+        f.triangles_lately += boxes_[o].weight;
+      }
+  f.drawn_lately = lately.size();
+  f.fill_lately = fillOf(camera, width, height, region.rect, lately);
+  return f;
+}
+
+std::ostream& operator<<(std::ostream& os, const RegionForecast& f) {
+  return os << "{objects " << f.objects << ", drawn lately " << f.drawn_lately << " ("
+            << f.triangles_lately << " triangles, fill " << f.fill_lately << ")}";
+}
+
 FramePlan planFrame(const Scene& scene, const Camera& camera, int width, int height, int clients) {
   return FramePlanner(scene).plan(camera, width, height, clients);
 }

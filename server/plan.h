@@ -6,6 +6,7 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <ostream>
 #include <thread>
 #include <vector>
 
@@ -34,6 +35,18 @@ struct FramePlan {
   std::vector<double> planned;
   CostGrid grid;  // the cost grid the footprints were weighed with (empty: none)
 };
+
+// What the server expects of one region at plan time, from what it knows
+// (FramePlanner::forecast): set beside what the client then reports, it shows
+// how well the division's inputs predict a client's work (--division-log).
+struct RegionForecast {
+  uint64_t objects = 0;           // in the region's list
+  uint64_t drawn_lately = 0;      // of them, drawn in the last kSeenFrames frames
+  uint64_t triangles_lately = 0;  // their triangles
+  double fill_lately = 0;         // pixels of their footprints inside the region
+  friend bool operator==(const RegionForecast&, const RegionForecast&) = default;
+};
+std::ostream& operator<<(std::ostream& os, const RegionForecast& f);
 
 // A frame as tiles (--balance tiles-*): the tiles in makeTiles order and, per
 // tile, the objects whose footprint overlaps it.
@@ -135,6 +148,10 @@ class FramePlanner {
   // (object indices) inside `region`, overlaps counted once per object.
   double fillOf(const Camera& camera, int width, int height, Rect region,
                 const std::vector<uint32_t>& drawn) const;
+  // The forecast for `region` of the frame being planned (planningFrame),
+  // by the rule the weights use (drawn in the last kSeenFrames frames).
+  RegionForecast forecast(const Camera& camera, int width, int height,
+                          const Region& region) const;
 
  private:
   // Footprints of the `visible` objects, in the same order (those covering no

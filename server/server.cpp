@@ -65,6 +65,7 @@ struct FrameRecord {
   std::vector<double> fill;              // per client: FramePlanner::fillOf its sub-frames
   std::vector<RegionCost> planned;       // per client (frustum division): region, planned weight
   CostGrid grid;                         // the cost grid the frame was planned with
+  std::vector<RegionForecast> forecasts;  // per client, with --division-log
   Camera camera;
   std::vector<int> owed;  // per client: sub-frames given and not yet back
   int expected = 0;       // sub-frames that make up the frame
@@ -87,20 +88,29 @@ std::string statsHeader(int clients) {
   return h + "\n";
 }
 
+// The division log's header (ServerOptions::division_log): the server's
+// side (planned weight, forecast), then the client's (its CostSample).
+const char* const kDivisionLogHeader =
+    "frame,client,planned,objects,drawn_lately,triangles_lately,fill_lately,pixels,tested,drawn,"
+    "triangles,fill,ms\n";
+
 class Assembler {
  public:
   // `planner`, when given, hears which objects the clients drew.
   // `csv`: the stats CSV, each finished frame's row appended.
   // `hub`, when given, gets every frame (interactive mode); then `frames` is
   // only an upper bound and the run ends when the planner stops.
+  // `division_log`, when given, gets the rows of frames planned with forecasts.
   Assembler(Comm& comm, const ServerOptions& opts, int clients, size_t frames,
-            FramePlanner* planner, StatsCsvAppender& csv, ViewerHub* hub = nullptr)
+            FramePlanner* planner, StatsCsvAppender& csv, ViewerHub* hub = nullptr,
+            StatsCsvAppender* division_log = nullptr)
       : comm_(comm),
         opts_(opts),
         clients_(clients),
         frames_(frames),
         planner_(planner),
         csv_(csv),
+        division_log_(division_log),
         hub_(hub) {
     assembled_ = opts.from_frame;
     last_done_ = Clock::now();
@@ -358,6 +368,9 @@ class Assembler {
           << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
           << c.vis_cpu_ms << "," << c.render_cpu_ms;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
+    if (division_log_ && rec.forecasts.size() == rec.clients.size() &&
+        rec.planned.size() == rec.clients.size())
+      logDivision(frame, rec);
     if (hub_) {
       double frame_ms = msBetween(last_done_, done), latency_ms = msBetween(rec.started, done);
       hub_->frameDone(frameDone(frame, std::move(rec), frame_ms, latency_ms));
@@ -368,6 +381,23 @@ class Assembler {
     std::lock_guard<std::mutex> lock(mu_);
     ++assembled_;
     cv_.notify_all();
+  }
+
+  // One division-log row per client: the server's side, then the client's.
+  void logDivision(uint32_t frame, const FrameRecord& rec) {
+    std::vector<CostSample> samples = costSamples(rec);
+    std::ostringstream rows;
+    rows.setf(std::ios::fixed);
+    rows.precision(3);
+    for (size_t k = 0; k < samples.size(); ++k) {
+      const RegionForecast& f = rec.forecasts[k];
+      const CostSample& c = samples[k];
+      rows << frame << "," << k + 1 << "," << rec.planned[k].planned << "," << f.objects << ","
+           << f.drawn_lately << "," << f.triangles_lately << "," << f.fill_lately << ","
+           << c.pixels << "," << c.tested << "," << c.drawn << "," << c.triangles << ","
+           << c.fill << "," << c.ms << "\n";
+    }
+    division_log_->append(rows.str());
   }
 
   // What a viewer's frame header reports (serve.h).
@@ -435,6 +465,7 @@ class Assembler {
   std::atomic<int> sending_to_{0};
   std::string error_;
   StatsCsvAppender& csv_;
+  StatsCsvAppender* division_log_;
   ViewerHub* hub_;
   Clock::time_point last_done_;
 };
@@ -581,7 +612,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   Scene scene;
   Walkthrough path;
   std::string problem;
-  std::unique_ptr<StatsCsvAppender> csv;
+  std::unique_ptr<StatsCsvAppender> csv, division_log;
   try {
     scene = loadScene(opts.scene);
     if (!opts.walkthrough.empty())
@@ -597,6 +628,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     // cannot be written stops the run before any work is done.
     csv = std::make_unique<StatsCsvAppender>(
         opts.stats, resumeStatsCsv(opts.stats, statsHeader(clients), opts.from_frame));
+    if (!opts.division_log.empty())
+      division_log = std::make_unique<StatsCsvAppender>(
+          opts.division_log,
+          resumeStatsCsv(opts.division_log, kDivisionLogHeader, opts.from_frame));
   } catch (const std::exception& e) {
     problem = e.what();
   }
@@ -679,7 +714,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   if (opts.cost_grid && opts.visible_weights)
     planner.enableCostGrid(FramePlanner::kGridColumns, FramePlanner::kGridRows);
   Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
-                      hub.get());
+                      hub.get(), division_log.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
   assembler.onSubFrame([&](int client, uint32_t frame) { dispatcher.returned(client, frame); });
   std::thread assembling([&] {
@@ -737,6 +772,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.grid = std::move(plan.grid);
         for (int k = 0; k < clients; ++k)
           rec.planned.push_back({plan.regions[size_t(k)].rect, plan.planned[size_t(k)], 0.0});
+        if (division_log)
+          for (const Region& r : plan.regions)
+            rec.forecasts.push_back(planner.forecast(cam, v.width, v.height, r));
         for (int k = 0; k < clients; ++k) {
           jobs.push_back({k + 1, FrameJob{f,
                                           cam,

@@ -17,6 +17,12 @@ struct ServerOptions {
   std::string walkthrough;
   std::string out;    // frames: frame_NNNNNN.png
   std::string stats;  // optional per-frame CSV
+  // Optional CSV, one row per client and frame (frustum division): what the
+  // server forecast for the region at plan time (FramePlanner::forecast) and
+  // the weight it balanced, beside the work and time the client reported.
+  // For studying the division's weights; costs a second projection of each
+  // region's lately drawn objects.
+  std::string division_log;
   ViewOptions view;
   // Frames sent ahead of the last one assembled: 3 keeps the server, the
   // visibility and the render stage busy on frames i, i-1, i-2; 1 serialises.

@@ -587,6 +587,42 @@ TEST(Balance, TheCostGridLearnsFromMeasuredTimesAndFramesStayExact) {
   }
 }
 
+// --division-log: one row per client and frame, whose client side is what the
+// stats CSV says that client did, and whose forecast counts the region's list
+// and, once clients have reported, what they drew lately.
+TEST(Balance, TheDivisionLogSetsTheForecastBesideWhatEachClientDid) {
+  SmallScene& s = smallScene();
+  const int clients = 3;
+  std::string out = s.dir / "division-log";
+  s.render(clients, out, "--stats " + out + ".csv --division-log " + out + ".division.csv");
+  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> log = test::readCsv(out + ".division.csv");
+  ASSERT_EQ(stats.size(), 4u);
+  ASSERT_EQ(log.size(), stats.size() * clients);
+  uint64_t lately = 0;
+  for (test::CsvRow& row : log) {
+    size_t f = size_t(row["frame"]);
+    int k = int(row["client"]);
+    ASSERT_LT(f, stats.size());
+    ASSERT_TRUE(k >= 1 && k <= clients) << k;
+    test::CsvRow& st = stats[f];
+    std::string c = "c" + std::to_string(k) + "_";
+    EXPECT_EQ(row["objects"], st[c + "objects"]) << f << " " << k;
+    EXPECT_EQ(row["tested"], st[c + "queried"]) << f << " " << k;
+    EXPECT_EQ(row["drawn"], st[c + "visible"]) << f << " " << k;
+    EXPECT_EQ(row["triangles"], st[c + "triangles"]) << f << " " << k;
+    EXPECT_EQ(row["pixels"] * 3, st[c + "bytes_raw"]) << f << " " << k;
+    EXPECT_LE(row["drawn_lately"], row["objects"]);
+    EXPECT_GT(row["planned"], 0);
+    EXPECT_GE(row["ms"], 0);
+    if (f == 0) {
+      EXPECT_EQ(row["drawn_lately"], 0) << "frame 0 is planned before any report";
+    }
+    lately += uint64_t(row["drawn_lately"]);
+  }
+  EXPECT_GT(lately, 0u) << "no forecast ever counted what the clients drew";
+}
+
 // An exception of a type that is not std::exception escaping a stage (as a
 // third-party library may throw) ends the run with a message, not with
 // std::terminate of the stage's thread.

@@ -248,6 +248,45 @@ TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
   EXPECT_LE(staleTotal, 2 * FramePlanner::kHiddenWeight * scene.objects.size());
 }
 
+TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
+  Rng rng(36);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera camera;  // top down: every object in view
+  camera.eye = {18, 200, -18};
+  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
+  camera.fovy_deg = 40;
+  FramePlanner planner(scene);
+  planner.planningFrame(0);
+  FramePlan first = planner.plan(camera, 256, 256, 3);
+  for (const Region& r : first.regions)  // no feedback yet: nothing drawn lately
+    EXPECT_EQ(planner.forecast(camera, 256, 256, r),
+              (RegionForecast{r.objects.size(), 0, 0, 0.0}));
+  const std::vector<uint32_t> drawn = {0, 5, 42, 99};
+  planner.reportDrawn(0, drawn);
+  planner.planningFrame(1);
+  FramePlan plan = planner.plan(camera, 256, 256, 3);
+  uint64_t lately_total = 0;
+  for (const Region& r : plan.regions) {
+    RegionForecast expected{r.objects.size(), 0, 0, 0.0};
+    std::vector<uint32_t> mine;
+    for (uint32_t o : drawn)
+      if (std::binary_search(r.objects.begin(), r.objects.end(), o)) {
+        mine.push_back(o);
+        ++expected.drawn_lately;
+        expected.triangles_lately += scene.objects[o].weight;
+      }
+    expected.fill_lately = planner.fillOf(camera, 256, 256, r.rect, mine);
+    EXPECT_EQ(planner.forecast(camera, 256, 256, r), expected) << r;
+    EXPECT_EQ(mine.empty(), expected.fill_lately == 0.0) << r;  // each drawn object covers pixels
+    lately_total += expected.drawn_lately;
+  }
+  EXPECT_GE(lately_total, drawn.size());  // every drawn object is in some region
+  // Older than kSeenFrames: no longer drawn lately, as for the weights.
+  planner.planningFrame(FramePlanner::kSeenFrames + 1);
+  for (const Region& r : plan.regions)
+    EXPECT_EQ(planner.forecast(camera, 256, 256, r).drawn_lately, 0u) << r;
+}
+
 TEST(FramePlanner, HintsAreTheObjectsDrawnInTheLatestReportedFrames) {
   Rng rng(36);
   Scene scene = gridScene(rng, 4, 4);
