@@ -122,6 +122,57 @@ def derived_pipelined(r, n):
     return max(server, vis, ren)
 
 
+def in_flight_of(options, default=3):
+    """dmmr-render's --in-flight from a run's options (a list, or one string;
+    dmmr-render's default 3 when absent)."""
+    words = options.split() if isinstance(options, str) else [str(w) for w in (options or [])]
+    for i, w in enumerate(words):
+        if w == "--in-flight" and i + 1 < len(words):
+            return int(words[i + 1])
+        if w.startswith("--in-flight="):
+            return int(w.split("=", 1)[1])
+    return default
+
+
+def schedule(server_ms, client_ms, transfer, in_flight):
+    """dmmr's frame schedule replayed on a cluster with one machine per client,
+    from per-frame costs: the server plans frame f once frame f - in_flight is
+    assembled (Assembler::waitForRoom), one frame after another; each client
+    works through its jobs in order, starting a job when its previous one and
+    the frame's plan are done, and is busy until its sub-frame has left
+    (transfer included); a frame is assembled when its last sub-frame is in.
+    server_ms[f]: planning cost; client_ms[f][k], transfer[f][k]: client k's
+    cost and transfer. Returns (period, latency): the mean time between
+    assemblies over frames 1.., and the mean over frames 1.. of the time from
+    a frame's planning start to its assembly. Pure function over plain lists."""
+    frames = len(server_ms)
+    if frames == 0:
+        return float("nan"), float("nan")
+    n = len(client_ms[0])
+    done, began = [0.0] * frames, [0.0] * frames
+    server_free, client_free = 0.0, [0.0] * n
+    for f in range(frames):
+        began[f] = max(server_free, done[f - in_flight] if f >= in_flight else 0.0)
+        server_free = began[f] + server_ms[f]
+        arrivals = []
+        for k in range(n):
+            client_free[k] = max(client_free[k], server_free) + client_ms[f][k] + transfer[f][k]
+            arrivals.append(client_free[k])
+        done[f] = max(arrivals)
+    if frames == 1:
+        return done[0], done[0] - began[0]
+    return (done[-1] - done[0]) / (frames - 1), mean(done[f] - began[f] for f in range(1, frames))
+
+
+def derived_schedule(rows, n, in_flight, cost=None):
+    """schedule() over a run's stats rows, with the costs derived_frame uses
+    (server_work, client_work by `cost`, transfer at LINK_GBPS)."""
+    return schedule([server_work(r, cost) for r in rows],
+                    [[client_work(r, k, cost) for k in range(1, n + 1)] for r in rows],
+                    [[transfer_ms(num(r, f"c{k}_bytes_sent")) for k in range(1, n + 1)] for r in rows],
+                    in_flight)
+
+
 def accuracy(cmp_path):
     rows = read_csv(cmp_path)
     ps = [float(r["psnr"]) for r in rows]
@@ -177,7 +228,7 @@ def faster(base, x):
     return base / x
 
 
-def render_stats(path, clients):
+def render_stats(path, clients, in_flight=3):
     rows = read_csv(path)
     n = clients_of(rows[0])
     if n != clients:
@@ -186,6 +237,7 @@ def render_stats(path, clients):
     ft = [num(r, "frame_ms") for r in s]
     der = [derived_frame(r, n) for r in s]
     derp = [derived_pipelined(r, n) for r in s]
+    period, latency = derived_schedule(rows, n, in_flight)
     out = {
         "frames": len(rows), "clients": n,
         "frame_ms_mean": mean(ft), "frame_ms_median": median(ft),
@@ -194,6 +246,9 @@ def render_stats(path, clients):
         "fps_max": 1000.0 / min(ft) if ft and min(ft) > 0 else None,
         "derived_frame_ms_mean": mean(der), "derived_frame_ms_median": median(der),
         "derived_pipelined_ms_mean": mean(derp),
+        # the run's own schedule (in_flight frames ahead) replayed on a cluster
+        "in_flight": in_flight,
+        "scheduled_frame_ms": period, "scheduled_latency_ms": latency,
         "derived_cost": COST,
         # both costs where the CSV has CPU times, to check one against the other
         "derived_wall_frame_ms_mean": mean(derived_frame(r, n, "wall") for r in s),
@@ -272,7 +327,7 @@ def analyse_scene(name, info, configurations):
     res["osg"] = osg
     of = osg["frame_ms_mean"] if osg else None
     for label, n, extra in configurations:
-        r = render_stats(rd / f"{label}.csv", n)
+        r = render_stats(rd / f"{label}.csv", n, in_flight_of(extra))
         r["options"] = extra
         r["plain"] = "--query-threshold" not in extra  # a plain run (options given to all of them aside)
         r["query_threshold"] = int(extra[extra.index("--query-threshold") + 1]) if "--query-threshold" in extra else 0
@@ -293,6 +348,9 @@ def analyse_scene(name, info, configurations):
         if base and r["plain"] and r["derived_frame_ms_mean"] > 0:
             r["derived_efficiency"] = base["derived_frame_ms_mean"] / (r["clients"] * r["derived_frame_ms_mean"])
             r["derived_speedup_vs_1_client"] = base["derived_frame_ms_mean"] / r["derived_frame_ms_mean"]
+        if base and r["plain"] and r["scheduled_frame_ms"] > 0:
+            r["scheduled_efficiency"] = base["scheduled_frame_ms"] / (r["clients"] * r["scheduled_frame_ms"])
+            r["scheduled_speedup_vs_1_client"] = base["scheduled_frame_ms"] / r["scheduled_frame_ms"]
     # work inflation: each run's work summed over clients against the 1-client run's
     for r in res["runs"].values():
         r["work_sums"] = work_sums(r)

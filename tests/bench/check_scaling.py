@@ -32,7 +32,7 @@ labels = [c["label"] for c in s.get("configurations", [])]
 check(labels == [f"render-c{n}" for n in CLIENTS], f"configurations are the plain runs with {CLIENTS} clients")
 
 checks = s.get("targets_check", [])
-check(len(checks) == 5, f"five targets checked ({len(checks)})")
+check(len(checks) == 8, f"eight targets checked ({len(checks)})")
 for c in checks:
     check(set(c) == {"target", "met", "detail"} and c["met"] in (True, False, None), f"target entry {c}")
 ident = [c for c in checks if "identical" in c.get("target", "")]
@@ -49,8 +49,13 @@ for sc in s.get("scenes", []):
               f"{name}/{n}: every frame compared and identical")
         check(len(r["per_client"]) == n, f"{name}/{n}: one entry per client")
         for k in ("derived_efficiency", "derived_speedup_vs_1_client", "client_max_over_mean_median",
-                  "derived_cpu_frame_ms_mean", "work_sums", "inflation"):
+                  "derived_cpu_frame_ms_mean", "work_sums", "inflation", "scheduled_frame_ms",
+                  "scheduled_efficiency", "scheduled_speedup_vs_1_client", "scheduled_latency_ms"):
             check(r.get(k) is not None, f"{name}/{n}: {k}")
+        # the schedule never waits longer than frame-by-frame work does (same costs, frames 1..)
+        check(r.get("in_flight") == 3, f"{name}/{n}: the runs' default --in-flight 3 was read")
+        check(r["scheduled_frame_ms"] <= r["derived_frame_ms_mean"] * (1 + 1e-9) + 1e-9,
+              f"{name}/{n}: scheduled {r['scheduled_frame_ms']} above per-frame {r['derived_frame_ms_mean']}")
         inf = r.get("inflation") or {}
         check(set(WORK) <= set(inf), f"{name}/{n}: inflation of {', '.join(WORK)}")
         if n == 1:
@@ -63,9 +68,10 @@ for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)",
                 "### Frame time, efficiency, speed-up and balance", "## Summary", "## Plots"):
     check(heading in md, f"report.md has '{heading}'")
 check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")
-for words in ("LP_NUM_THREADS=0", "--bind-to none", "oversubscribed", "--cost cpu", "load average"):
+for words in ("LP_NUM_THREADS=0", "--bind-to none", "oversubscribed", "--cost cpu", "load average",
+              "Scheduled frame time", "--in-flight"):
     check(words in md, f"the method says {words!r}")
-check(md.count("**met**") + md.count("**not met**") + md.count("**not measured**") == 5, "five checklist lines")
+check(md.count("**met**") + md.count("**not met**") + md.count("**not measured**") == 8, "eight checklist lines")
 check("## Speed against error" not in md, "no sweep section without a sweep")
 check("| objects tested | objects drawn | triangles drawn |" in md, "the inflation table's header")
 if any(c["met"] is False for c in checks):
