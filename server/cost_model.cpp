@@ -160,4 +160,33 @@ CostModel fitCostsAndSpeeds(const std::vector<CostSample>& samples, int clients,
   return m;
 }
 
+void updateClientDebt(const std::vector<CostSample>& frame, std::vector<double>* debt,
+                      double* frame_ms) {
+  double sum = 0;
+  int n = 0, clients = int(debt->size());
+  for (const CostSample& c : frame)
+    if (std::isfinite(c.ms) && c.ms >= 0 && c.client >= 0) {
+      sum += c.ms;
+      ++n;
+      clients = std::max(clients, c.client + 1);
+    }
+  debt->resize(size_t(clients), 0.0);
+  if (n == 0) return;
+  const double mean = sum / n;
+  *frame_ms = *frame_ms > 0 ? kDebtMemory * *frame_ms + (1 - kDebtMemory) * mean : mean;
+  for (const CostSample& c : frame)
+    if (std::isfinite(c.ms) && c.ms >= 0 && c.client >= 0)
+      (*debt)[size_t(c.client)] = kDebtMemory * (*debt)[size_t(c.client)] + (c.ms - mean);
+}
+
+std::vector<double> clientDebtFactors(const std::vector<double>& debt, double frame_ms,
+                                      int clients) {
+  std::vector<double> f(size_t(std::max(clients, 0)), 1.0);
+  if (!(frame_ms > 0) || !std::isfinite(frame_ms)) return f;
+  for (size_t k = 0; k < f.size() && k < debt.size(); ++k)
+    if (std::isfinite(debt[k]))
+      f[k] = std::clamp(1.0 - debt[k] / (kDebtFrames * frame_ms), 0.5, 2.0);
+  return f;
+}
+
 }  // namespace dmmr

@@ -63,4 +63,23 @@ std::vector<double> clientSpeeds(const CostModel& m, const std::vector<CostSampl
 CostModel fitCostsAndSpeeds(const std::vector<CostSample>& samples, int clients,
                             std::vector<double>* speeds);
 
+// Catching up (--catch-up): frames in flight let a client that was slowest on
+// one frame catch up on the next, so the frame rate is set by the busiest
+// client's mean time, not by each frame's slowest (docs/benchmarks.md: the
+// scheduled frame time); the debt steers the next shares to even the means
+// out. kDebtMemory and kDebtFrames were chosen by an A/B on the medium scenes
+// (faster payback evened the means more but unbalanced single frames). A client's debt is how far
+// its time runs ahead of the clients' mean: each frame `debt = kDebtMemory * debt + (ms - mean ms)`
+// (samples of one frame; a client without a finite time keeps its debt), and `frame_ms` a smoothed
+// mean client time. `debt` is resized to the samples' client count.
+constexpr double kDebtMemory = 0.9;
+void updateClientDebt(const std::vector<CostSample>& frame, std::vector<double>* debt,
+                      double* frame_ms);
+// Per client, the factor its share of the next frame is multiplied by, to pay
+// its debt back over about kDebtFrames frames: 1 - debt / (kDebtFrames *
+// frame_ms), clamped to [1/2, 2]; all 1 without debts or a mean time.
+constexpr double kDebtFrames = 2;
+std::vector<double> clientDebtFactors(const std::vector<double>& debt, double frame_ms,
+                                      int clients);
+
 }  // namespace dmmr

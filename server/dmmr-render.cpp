@@ -85,6 +85,11 @@ int main(int argc, char** argv) {
                  "frustum division: a CSV with one row per client and frame, the server's "
                  "forecast for the region and the weight it balanced beside what the client "
                  "reported (docs/benchmarks.md, issue 16)");
+  dmmr::addSwitchOption(app, "--catch-up", &s.catch_up,
+                        "frustum division with fitted weights: on (a client whose measured time "
+                        "ran above the clients' mean gets smaller shares of the next frames until "
+                        "it has caught up, as frames in flight let it) or off; never changes a "
+                        "pixel");
   dmmr::addSwitchOption(app, "--cost-grid", &s.cost_grid,
                         "frustum division: on (the weights are corrected, cell by cell of the "
                         "screen, by where the clients' measured time went in past frames; with "

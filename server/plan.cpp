@@ -52,6 +52,7 @@ void FramePlanner::reportCosts(const std::vector<CostSample>& samples) {
       all.push_back(s);
       clients = std::max(clients, s.client + 1);
     }
+  updateClientDebt(samples, &debt_, &frame_ms_);
   std::vector<double> speeds;
   CostModel m = fitCostsAndSpeeds(all, clients, &speeds);
   if (!m.fitted) return;  // keep the last good fit (or none)
@@ -62,6 +63,20 @@ void FramePlanner::reportCosts(const std::vector<CostSample>& samples) {
 CostModel FramePlanner::costModel() const {
   std::lock_guard<std::mutex> lock(cost_mu_);
   return model_;
+}
+
+std::vector<double> FramePlanner::shares(int clients) const {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  if (!model_.fitted || speeds_.size() != size_t(clients)) return {};
+  if (!catch_up_) return speeds_;
+  std::vector<double> f = clientDebtFactors(debt_, frame_ms_, clients);
+  for (int k = 0; k < clients; ++k) f[size_t(k)] *= speeds_[size_t(k)];
+  return f;
+}
+
+void FramePlanner::setCatchUp(bool on) {
+  std::lock_guard<std::mutex> lock(cost_mu_);
+  catch_up_ = on;
 }
 
 std::vector<double> FramePlanner::speeds() const {
@@ -228,11 +243,9 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   DivisionCosts costs;
   {
     std::lock_guard<std::mutex> lock(cost_mu_);
-    if (model_.fitted) {
-      costs.pixel_weight = model_.per_pixel * kUnitsPerMs;
-      if (speeds_.size() == size_t(clients)) costs.speeds = speeds_;
-    }
+    if (model_.fitted) costs.pixel_weight = model_.per_pixel * kUnitsPerMs;
   }
+  costs.speeds = shares(clients);  // empty before a fit: equal shares
   plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients, costs);
   for (const Region& r : plan.regions)
     plan.planned.push_back(double(r.weight) + costs.pixel_weight * double(r.rect.area()));

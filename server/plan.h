@@ -133,6 +133,14 @@ class FramePlanner {
   // The model and speeds the next plan uses (for logs and tests).
   CostModel costModel() const;
   std::vector<double> speeds() const;
+  // Each client's share of the next frame (DivisionCosts::speeds): its
+  // speed, times its debt correction (clientDebtFactors) when catching up is
+  // on. Empty before a fit.
+  std::vector<double> shares(int clients) const;
+  // Catching up (cost_model.h; on by default): a client whose measured time
+  // ran above the clients' mean gets smaller shares until it has caught up.
+  // Moves split lines only: never changes a pixel.
+  void setCatchUp(bool on);
   // Measured cost correction (--cost-grid, cost_grid.h): from then on each
   // footprint's weight is multiplied by the grid's mean factor under it, and
   // each finished frame's regions (planned weight, measured time) correct the
@@ -150,8 +158,7 @@ class FramePlanner {
                 const std::vector<uint32_t>& drawn) const;
   // The forecast for `region` of the frame being planned (planningFrame),
   // by the rule the weights use (drawn in the last kSeenFrames frames).
-  RegionForecast forecast(const Camera& camera, int width, int height,
-                          const Region& region) const;
+  RegionForecast forecast(const Camera& camera, int width, int height, const Region& region) const;
 
  private:
   // Footprints of the `visible` objects, in the same order (those covering no
@@ -182,6 +189,9 @@ class FramePlanner {
   std::vector<std::vector<CostSample>> cost_frames_;  // the last kCostFrames frames' samples
   CostModel model_;
   std::vector<double> speeds_;
+  std::vector<double> debt_;  // per client: ms behind the clients' mean (updateClientDebt)
+  double frame_ms_ = 0;       // the clients' mean time per frame, smoothed
+  bool catch_up_ = true;
   CostGrid grid_;                         // empty: no correction
   int grid_width_ = 0, grid_height_ = 0;  // the frame the grid was last corrected for
 };

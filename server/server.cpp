@@ -58,13 +58,13 @@ struct FrameRecord {
   double cull_ms = 0, divide_ms = 0, send_ms = 0;
   double plan_cpu_ms = 0;  // FramePlan::plan_cpu_ms
   uint64_t objects = 0, triangles = 0;
-  std::vector<uint64_t> region_objects;  // as planned, per client
-  Image image;                           // assembled RGBA, top row first
-  std::vector<ClientStats> clients;      // per client, summed over its sub-frames
-  std::vector<uint64_t> pixels;          // per client: pixels of its sub-frames
-  std::vector<double> fill;              // per client: FramePlanner::fillOf its sub-frames
-  std::vector<RegionCost> planned;       // per client (frustum division): region, planned weight
-  CostGrid grid;                         // the cost grid the frame was planned with
+  std::vector<uint64_t> region_objects;   // as planned, per client
+  Image image;                            // assembled RGBA, top row first
+  std::vector<ClientStats> clients;       // per client, summed over its sub-frames
+  std::vector<uint64_t> pixels;           // per client: pixels of its sub-frames
+  std::vector<double> fill;               // per client: FramePlanner::fillOf its sub-frames
+  std::vector<RegionCost> planned;        // per client (frustum division): region, planned weight
+  CostGrid grid;                          // the cost grid the frame was planned with
   std::vector<RegionForecast> forecasts;  // per client, with --division-log
   Camera camera;
   std::vector<int> owed;  // per client: sub-frames given and not yet back
@@ -393,9 +393,9 @@ class Assembler {
       const RegionForecast& f = rec.forecasts[k];
       const CostSample& c = samples[k];
       rows << frame << "," << k + 1 << "," << rec.planned[k].planned << "," << f.objects << ","
-           << f.drawn_lately << "," << f.triangles_lately << "," << f.fill_lately << ","
-           << c.pixels << "," << c.tested << "," << c.drawn << "," << c.triangles << ","
-           << c.fill << "," << c.ms << "\n";
+           << f.drawn_lately << "," << f.triangles_lately << "," << f.fill_lately << "," << c.pixels
+           << "," << c.tested << "," << c.drawn << "," << c.triangles << "," << c.fill << ","
+           << c.ms << "\n";
     }
     division_log_->append(rows.str());
   }
@@ -713,6 +713,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   FramePlanner planner(scene);
   if (opts.cost_grid && opts.visible_weights)
     planner.enableCostGrid(FramePlanner::kGridColumns, FramePlanner::kGridRows);
+  // Only frames in flight let a client catch up: with one, every frame waits
+  // for its slowest client, and shares that lean against the past unbalance it.
+  planner.setCatchUp(opts.catch_up && opts.in_flight > 1);
   Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
                       hub.get(), division_log.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);

@@ -40,6 +40,10 @@ struct ServerOptions {
   // (FramePlanner::enableCostGrid, cost_grid.h); frustum division only.
   // Moves split lines only: never changes a pixel.
   bool cost_grid = false;
+  // With fitted weights and more than one frame in flight: a client whose
+  // time ran above the clients' mean gets smaller shares until it has caught
+  // up (FramePlanner::setCatchUp).
+  bool catch_up = true;
   // A client that sends nothing for this long while it owes a sub-frame has
   // died or hangs: the server names it and aborts the job (frames already
   // assembled stay on disk). Generous by default: a first frame that loads

@@ -16,7 +16,8 @@ measured max/mean and the planned weights' max/mean (how evenly the division
 split what it was given).
 usage: division_log_report.py LABEL=LOG.csv [FEATURE_SET=col,col ...] ...
   extra feature sets are fitted too (columns of the log).
-Needs numpy (Debian python3-numpy).
+Needs numpy (Debian python3-numpy, which python3-matplotlib of install-deps.sh brings;
+/usr/bin/python3).
 """
 import csv
 import statistics

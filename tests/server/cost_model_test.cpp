@@ -127,5 +127,48 @@ TEST(CostModel, FindsASlowClientAndLeavesEqualOnesAtOne) {
   }
 }
 
+// Debt feedback: a client slower than the mean on a frame runs into debt,
+// which fades by kDebtMemory a frame and lowers its next shares.
+TEST(ClientDebt, GrowsWithTimeAboveTheMeanAndFades) {
+  std::vector<double> debt;
+  double frame_ms = 0;
+  std::vector<CostSample> frame(3);
+  for (int k = 0; k < 3; ++k) frame[size_t(k)].client = k;
+  frame[0].ms = 14, frame[1].ms = 10, frame[2].ms = 6;  // mean 10
+  updateClientDebt(frame, &debt, &frame_ms);
+  EXPECT_EQ(debt, (std::vector<double>{4, 0, -4}));
+  EXPECT_EQ(frame_ms, 10);
+  updateClientDebt(frame, &debt, &frame_ms);
+  EXPECT_DOUBLE_EQ(debt[0], 4 * kDebtMemory + 4);
+  EXPECT_DOUBLE_EQ(debt[2], -(4 * kDebtMemory + 4));
+  // Equal times from now on: the debt fades geometrically, the order stays.
+  for (CostSample& c : frame) c.ms = 20;
+  double before = debt[0];
+  updateClientDebt(frame, &debt, &frame_ms);
+  EXPECT_DOUBLE_EQ(debt[0], before * kDebtMemory);
+  EXPECT_DOUBLE_EQ(frame_ms, kDebtMemory * 10 + (1 - kDebtMemory) * 20);
+  // A client without a finite time keeps its debt; the mean is of the others.
+  frame[1].ms = std::nan("");
+  frame[0].ms = 30, frame[2].ms = 10;
+  std::vector<double> kept = debt;
+  updateClientDebt(frame, &debt, &frame_ms);
+  EXPECT_EQ(debt[1], kept[1]);
+  EXPECT_DOUBLE_EQ(debt[0], kept[0] * kDebtMemory + 10);
+}
+
+TEST(ClientDebt, FactorsPayTheDebtBackWithinBounds) {
+  // 10 ms a frame: a debt of 4 ms is paid back over kDebtFrames frames.
+  std::vector<double> f = clientDebtFactors({4, 0, -4}, 10, 3);
+  ASSERT_EQ(f.size(), 3u);
+  EXPECT_DOUBLE_EQ(f[0], 1 - 4 / (kDebtFrames * 10));
+  EXPECT_EQ(f[1], 1);
+  EXPECT_DOUBLE_EQ(f[2], 1 + 4 / (kDebtFrames * 10));
+  // Clamped to [1/2, 2]; no mean time, or a non-finite debt: 1.
+  EXPECT_EQ(clientDebtFactors({1000, -1000}, 10, 2), (std::vector<double>{0.5, 2}));
+  EXPECT_EQ(clientDebtFactors({4, -4}, 0, 2), (std::vector<double>{1, 1}));
+  EXPECT_EQ(clientDebtFactors({std::nan(""), 4}, 10, 3),
+            (std::vector<double>{1, 1 - 4 / (kDebtFrames * 10), 1}));
+}
+
 }  // namespace
 }  // namespace dmmr

@@ -259,8 +259,7 @@ TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
   planner.planningFrame(0);
   FramePlan first = planner.plan(camera, 256, 256, 3);
   for (const Region& r : first.regions)  // no feedback yet: nothing drawn lately
-    EXPECT_EQ(planner.forecast(camera, 256, 256, r),
-              (RegionForecast{r.objects.size(), 0, 0, 0.0}));
+    EXPECT_EQ(planner.forecast(camera, 256, 256, r), (RegionForecast{r.objects.size(), 0, 0, 0.0}));
   const std::vector<uint32_t> drawn = {0, 5, 42, 99};
   planner.reportDrawn(0, drawn);
   planner.planningFrame(1);
@@ -285,6 +284,44 @@ TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
   planner.planningFrame(FramePlanner::kSeenFrames + 1);
   for (const Region& r : plan.regions)
     EXPECT_EQ(planner.forecast(camera, 256, 256, r).drawn_lately, 0u) << r;
+}
+
+// Catching up: a client whose region held more work, every frame, than the
+// others' (its time explained by the fitted model, so its speed stays 1) runs
+// into debt and gets a smaller share of the next frames; off, shares are the
+// speeds alone.
+TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
+  Rng rng(37);
+  Scene scene = gridScene(rng, 4, 4);
+  FramePlanner planner(scene);
+  const CostModel truth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
+  for (int frame = 0; frame < 12; ++frame) {
+    std::vector<CostSample> samples;
+    for (int k = 0; k < 3; ++k) {
+      double more = k == 0 ? 2.0 : 1.0;  // client 0's region holds twice the work
+      CostSample s;
+      s.client = k;
+      s.drawn = more * rng.real(50, 150);
+      s.triangles = more * rng.real(1e4, 5e4);
+      s.tested = more * rng.real(200, 900);
+      s.pixels = rng.real(1e5, 3e5);
+      s.fill = more * rng.real(1e5, 6e5);
+      s.ms = predictMs(truth, s);
+      samples.push_back(s);
+    }
+    planner.reportCosts(samples);
+  }
+  ASSERT_TRUE(planner.costModel().fitted);
+  EXPECT_EQ(planner.speeds(), (std::vector<double>{1, 1, 1}));  // the model explains the times
+  std::vector<double> on = planner.shares(3);
+  ASSERT_EQ(on.size(), 3u);
+  EXPECT_LT(on[0], 0.9);
+  EXPECT_GT(on[1], 1.0);
+  EXPECT_GT(on[2], 1.0);
+  EXPECT_GE(on[0], 0.5);  // never below half
+  planner.setCatchUp(false);
+  EXPECT_EQ(planner.shares(3), planner.speeds());
+  EXPECT_TRUE(planner.shares(4).empty());  // fitted for 3 clients only
 }
 
 TEST(FramePlanner, HintsAreTheObjectsDrawnInTheLatestReportedFrames) {
