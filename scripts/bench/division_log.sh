@@ -6,7 +6,9 @@
 # cost is its stage threads' CPU time, the scaling suite's method), then
 # scripts/bench/division_log_report.py over the logs: R^2 of client time
 # against the client's own counts (hindsight) and against the server's forecast
-# at plan time, and the imbalance each would leave.
+# at plan time, and the imbalance each would leave. DMMR_BENCH_OPTIONS: more
+# dmmr-render options (default --catch-up off: catching up makes the planned
+# shares unequal on purpose, and this measures the forecast).
 # usage: scripts/bench/division_log.sh   (writes out/bench/division-log/, prints Markdown)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -14,6 +16,7 @@ bin=${DMMR_BIN:-build/bin}
 out=${DMMR_BENCH_OUT:-out/bench/division-log}
 counts=${DMMR_BENCH_CLIENTS:-4 16}
 scenes=${DMMR_BENCH_SCENES:-plants4 plants8 monuments16}
+options=${DMMR_BENCH_OPTIONS:---catch-up off}
 mkdir -p "$out"
 # shellcheck source=lib.sh
 source scripts/bench/lib.sh
@@ -34,7 +37,7 @@ for s in $scenes; do
     LP_NUM_THREADS=0 "${launch[@]}" -np $((n + 1)) -x LP_NUM_THREADS $bin/dmmr-render \
       --scene "out/bench/$s.scene" --walkthrough "out/bench/$s.generated.path" --out "$run" \
       --stats "$run.csv" --division-log "$run.division.csv" --width 1024 --height 768 \
-      --no-progress >/dev/null 2>"$run.log"
+      --no-progress $options >/dev/null 2>"$run.log"
     logs+=("$s-c$n=$run.division.csv")
   done
 done

@@ -134,7 +134,7 @@ def in_flight_of(options, default=3):
     return default
 
 
-def schedule(server_ms, client_ms, transfer, in_flight):
+def schedule(server_ms, client_ms, transfer, in_flight, first=1):
     """dmmr's frame schedule replayed on a cluster with one machine per client,
     from per-frame costs: the server plans frame f once frame f - in_flight is
     assembled (Assembler::waitForRoom), one frame after another; each client
@@ -143,8 +143,9 @@ def schedule(server_ms, client_ms, transfer, in_flight):
     (transfer included); a frame is assembled when its last sub-frame is in.
     server_ms[f]: planning cost; client_ms[f][k], transfer[f][k]: client k's
     cost and transfer. Returns (period, latency): the mean time between
-    assemblies over frames 1.., and the mean over frames 1.. of the time from
-    a frame's planning start to its assembly. Pure function over plain lists."""
+    assemblies over frames `first`.. (1: all but the first), and the mean over
+    them of the time from a frame's planning start to its assembly. Pure
+    function over plain lists."""
     frames = len(server_ms)
     if frames == 0:
         return float("nan"), float("nan")
@@ -161,16 +162,19 @@ def schedule(server_ms, client_ms, transfer, in_flight):
         done[f] = max(arrivals)
     if frames == 1:
         return done[0], done[0] - began[0]
-    return (done[-1] - done[0]) / (frames - 1), mean(done[f] - began[f] for f in range(1, frames))
+    first = min(max(first, 1), frames - 1)
+    return ((done[-1] - done[first - 1]) / (frames - first),
+            mean(done[f] - began[f] for f in range(first, frames)))
 
 
-def derived_schedule(rows, n, in_flight, cost=None):
-    """schedule() over a run's stats rows, with the costs derived_frame uses
-    (server_work, client_work by `cost`, transfer at LINK_GBPS)."""
+def derived_schedule(rows, n, in_flight, cost=None, first=1):
+    """schedule() over a run's stats rows (every frame, in order), with the
+    costs derived_frame uses (server_work, client_work by `cost`, transfer at
+    LINK_GBPS)."""
     return schedule([server_work(r, cost) for r in rows],
                     [[client_work(r, k, cost) for k in range(1, n + 1)] for r in rows],
                     [[transfer_ms(num(r, f"c{k}_bytes_sent")) for k in range(1, n + 1)] for r in rows],
-                    in_flight)
+                    in_flight, first)
 
 
 def accuracy(cmp_path):

@@ -31,6 +31,10 @@ alt = [[10.0, 2.0] if f % 2 == 0 else [2.0, 10.0] for f in range(8)]
 period, latency = schedule([0.0] * 8, alt, zero2, in_flight=1)
 check(close(period, 10.0), f"in flight 1: period {period} (10 expected)")
 check(close(latency, 10.0), f"in flight 1: latency {latency} (10 expected)")
+period, _ = schedule([0.0] * 8, alt, zero2, in_flight=1, first=4)
+check(close(period, 10.0), f"in flight 1, from frame 4: period {period} (10 expected)")
+period, _ = schedule([0.0] * 8, alt, zero2, in_flight=3, first=2)
+check(close(period, (48.0 - 12.0) / 6), f"in flight 3, from frame 2: period {period} (6 expected)")
 period, _ = schedule([0.0] * 8, alt, zero2, in_flight=3)
 # Client 1 ends its jobs at 10, 12, 22, 24, 34, 36, 46, 48 and client 2 at
 # 2, 12, 14, 24, ...; frames are done at 10, 12, 22, 24, 34, 36, 46, 48.
