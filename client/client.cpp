@@ -888,9 +888,12 @@ class StageControl {
                   trial_.fusedMs());
     return line;
   }
-  bool culls() {
+  // Whether a job whose list holds `region_triangles` is culled.
+  bool culls(uint64_t region_triangles) {
     std::lock_guard<std::mutex> lock(mu_);
-    return !enabled_ || g_.culls();
+    if (!enabled_) return true;
+    g_.region(region_triangles);
+    return g_.culls();
   }
   bool probes() {
     std::lock_guard<std::mutex> lock(mu_);
@@ -944,7 +947,7 @@ class VisibilityStage {
     VisibleJob out;
     out.stats.objects = job.objects.size();
     bool here = culler_ && control_.mode(job.frame) != StageMode::Fused;
-    if (!here || !control_.culls()) {
+    if (!here || !control_.culls(regionTriangles(scene_, job.objects))) {
       // The render stage gets the whole list: it culls (fused stages), or
       // nothing does (no culling, or the cost model paused it).
       if (here)
@@ -1085,7 +1088,8 @@ class RenderStage {
       r.draw(*mesh, o.transform, o.box, gl_->meshes.textures());
       return mesh->triangles;
     };
-    bool fused_culled = v.fused && control_.culls(), culled = v.culled || fused_culled;
+    bool fused_culled = v.fused && control_.culls(regionTriangles(scene_, job.objects)),
+         culled = v.culled || fused_culled;
     Decision fused;
     double probe_ms = 0;  // the cost model's probe, when it paused culling
     if (fused_culled) {

@@ -78,13 +78,25 @@ void CullingGovernor::culled(const CullCost& c) {
   if (off_left_ > 0) return;
   if (net(c) >= 0) {
     bad_ = 0;
+    bad_region_ = 0;
     off_len_ = min_off_;
     return;
   }
+  bad_region_ = std::max(bad_region_, c.region_triangles);
   if (++bad_ < patience_) return;
   off_left_ = off_len_;
   off_len_ = std::min(max_off_, off_len_ * 2);
   since_probe_ = 0;
+  paused_region_ = bad_region_;
+  bad_region_ = 0;
+}
+
+void CullingGovernor::region(uint64_t triangles) {
+  if (off_left_ == 0 || paused_region_ == 0) return;
+  if (double(triangles) > kRegrowth * double(paused_region_)) {
+    off_left_ = 0;  // full patience again, as after a pause
+    bad_ = 0;
+  }
 }
 
 void CullingGovernor::unculled() {
@@ -96,7 +108,11 @@ void CullingGovernor::unculled() {
 
 void CullingGovernor::probed(const CullCost& c) {
   since_probe_ = 0;
-  if (off_left_ == 0 || net(c) < 0) return;
+  if (off_left_ == 0) return;
+  if (net(c) < 0) {  // a probe that does not pay is a frame that did not: its region counts
+    paused_region_ = std::max(paused_region_, c.region_triangles);
+    return;
+  }
   off_left_ = 0;
   bad_ = 0;
 }

@@ -144,11 +144,20 @@ class CullingGovernor {
   void unculled();
   // A probe's estimate of culling the frame: ends the pause when it pays.
   void probed(const CullCost& c);
+  // Before a frame is decided: its region's triangles (every object of its
+  // list). A pause was decided on regions where drawing everything was cheap
+  // enough; a region grown past kRegrowth times the largest of those is
+  // another view (the split lines moved, the camera came near a model), and
+  // the pause ends there instead of drawing it all blind until a probe.
+  void region(uint64_t triangles);
+  static constexpr double kRegrowth = 4;
   // Starts a pause of `frames` frames as if culling had not paid (the test
-  // hook DMMR_CULL_PAUSE starts a client's run so).
-  void pauseFor(uint32_t frames) {
+  // hook DMMR_CULL_PAUSE starts a client's run so), decided on regions of
+  // `triangles` (0: region() never ends it).
+  void pauseFor(uint32_t frames, uint64_t triangles = 0) {
     off_left_ = frames;
     since_probe_ = 0;
+    paused_region_ = triangles;
   }
   // Estimated ms the frame's culling saved (negative: it cost).
   static double net(const CullCost& c);
@@ -156,6 +165,8 @@ class CullingGovernor {
  private:
   uint32_t min_off_, max_off_, patience_, probe_every_;
   uint32_t off_len_, off_left_ = 0, bad_ = 0, since_probe_ = 0;
+  uint64_t bad_region_ = 0;     // the largest region of the frames that did not pay
+  uint64_t paused_region_ = 0;  // the same, for the pause under way (0: none known)
 };
 
 // `--stages auto`: after frame 0 (which loads geometry), blocks of `block`

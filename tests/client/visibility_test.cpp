@@ -341,6 +341,42 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   EXPECT_EQ(off, 4);
 }
 
+// A pause decided on small regions (everything in them visible) ends when a
+// region grows past kRegrowth times the largest of them: the split lines
+// moved, or the camera came near a model, and drawing it all blind costs.
+TEST(CullingGovernor, APauseEndsWhenTheRegionGrowsManyTimesOver) {
+  CullingGovernor g(16, 32, 3);
+  g.culled(cost(20, 100, 990, 1000));
+  g.culled(cost(20, 100, 1990, 2000));  // the largest of the three
+  g.culled(cost(20, 100, 1490, 1500));
+  ASSERT_FALSE(g.culls());
+  g.region(2000 * CullingGovernor::kRegrowth);  // grown, but not past the bound
+  EXPECT_FALSE(g.culls());
+  g.unculled();
+  g.region(2000 * CullingGovernor::kRegrowth + 1);
+  EXPECT_TRUE(g.culls()) << "a region past kRegrowth times the pause's ends it";
+  // Full patience again: two bad frames do not pause, the third does.
+  g.culled(cost(20, 100, 990, 1000));
+  g.culled(cost(20, 100, 990, 1000));
+  EXPECT_TRUE(g.culls());
+  g.culled(cost(20, 100, 990, 1000));
+  EXPECT_FALSE(g.culls());
+  // A probe that does not pay counts its region: this pause ends only past
+  // kRegrowth times the probe's larger region.
+  for (int f = 0; f < 4; ++f) g.unculled();
+  ASSERT_TRUE(g.probes());
+  g.probed(cost(20, 100, 9990, 10000));
+  EXPECT_FALSE(g.culls());
+  g.region(10000 * CullingGovernor::kRegrowth);
+  EXPECT_FALSE(g.culls());
+  g.region(10000 * CullingGovernor::kRegrowth + 1);
+  EXPECT_TRUE(g.culls());
+  // A hook's pause without a region is not ended by one.
+  g.pauseFor(10);
+  g.region(UINT64_MAX);
+  EXPECT_FALSE(g.culls());
+}
+
 TEST(CullingGovernor, ProbesEveryFewFramesOfAPauseAndAProbeThatPaysEndsIt) {
   CullingGovernor g(16, 32, 3, 4);
   CullCost bad = cost(20, 100, 990, 1000), good = cost(1, 10, 10, 100000);
