@@ -130,6 +130,9 @@ struct Decision {
   double prepare_ms = 0;   // occluder pass, tests (queries issued, or boxes on the CPU)
   double retrieve_ms = 0;  // query results, or the depth read back
   double redraw_ms = 0;    // fused: the pixels newly visible objects may reach, drawn again
+  // Fused: CPU time of drawing (step 1 and the new objects drawn on top, each
+  // with its rasterisation); the rest of drawFused's CPU time is deciding.
+  double draw_cpu_ms = 0;
   uint64_t triangles = 0;  // fused: of the objects drawn, each counted once
 };
 
@@ -215,14 +218,18 @@ class Culler {
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
     if (opts_.predict) predictFirst(job, &first, &d);
+    double c1 = threadCpuMs();
     for (uint32_t o : first) d.triangles += draw(o);
+    d.draw_cpu_ms += threadCpuMs() - c1;
     // The candidates' bounds need no depth: worked out while llvmpipe's
     // threads still rasterise step 1.
     auto t0 = Clock::now();
     std::vector<uint32_t> candidates = unmarked(job);
     for (uint32_t o : candidates) bound(o, job.camera);
     d.prepare_ms += msSince(t0);
+    c1 = threadCpuMs();
     gl_.renderer.finish();  // its rasterisation is drawing time
+    d.draw_cpu_ms += threadCpuMs() - c1;
     t0 = Clock::now();
     std::vector<uint32_t> passed = testPyramid(candidates, job, &d);
     std::sort(passed.begin(), passed.end());
@@ -250,9 +257,11 @@ class Culler {
     bool few = fresh_tris * 4 <= first_tris + kFewNewTriangles;
     if (!fresh.empty() && few && redraw_hook_ == RedrawHook::None && !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
+      double cl = threadCpuMs();
       for (uint32_t o : fresh) d.triangles += draw(o);
       gl_.renderer.finish();
       late_ms = msSince(tl);
+      d.draw_cpu_ms += threadCpuMs() - cl;
       if (fresh.size() >= opts_.second_pass_min) passed = retestWhereDrawn(passed, fresh, job, &d);
       d.prepare_ms += msSince(t0) - d.retrieve_ms - late_ms;
       return fusedDecision(std::move(d), plan, first, fresh, passed);
@@ -1088,12 +1097,16 @@ class RenderStage {
       r.draw(*mesh, o.transform, o.box, gl_->meshes.textures());
       return mesh->triangles;
     };
+    const double cpu_draw0 = threadCpuMs();
     bool fused_culled = v.fused && control_.culls(regionTriangles(scene_, job.objects)),
          culled = v.culled || fused_culled;
     Decision fused;
-    double probe_ms = 0;  // the cost model's probe, when it paused culling
+    double probe_ms = 0;   // the cost model's probe, when it paused culling
+    double fused_cpu = 0;  // drawFused's CPU time
     if (fused_culled) {
+      double c = threadCpuMs();
       fused = culler_->drawFused(job, draw);
+      fused_cpu = threadCpuMs() - c;
       st.prepare_ms = fused.prepare_ms;
       st.retrieve_ms = fused.retrieve_ms;
       st.occluders = fused.occluders;
@@ -1107,7 +1120,7 @@ class RenderStage {
       else if (!v.fused && culler_)
         culler_->adopt(job, v.visible);  // a split frame of --stages auto
       for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
-      if (probe) probeCulling(job, t0, st, &probe_ms);
+      if (probe) probeCulling(job, t0, cpu_draw0, st, &probe_ms);
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
@@ -1121,11 +1134,21 @@ class RenderStage {
     double culling = fused_culled ? fused.prepare_ms + fused.retrieve_ms : probe_ms;
     st.render_ms = msSince(t0) - st.load_ms - culling;
     // Deciding cost: the visibility stage's work, or the fused stage's
-    // readback, tests and redraws.
-    control_.record(culled, CullCost{v.fused ? culling + fused.redraw_ms
-                                             : v.stats.prepare_ms + v.stats.retrieve_ms,
-                                     st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles,
-                                     regionTriangles(scene_, job.objects)});
+    // readback, tests and redraws. When llvmpipe rasterises on the stage
+    // threads, their CPU time: with more processes than cores, wall-time
+    // intervals measure whom the scheduler ran, and short ones (drawing a few
+    // objects) against long ones (testing thousands) paused culling where it
+    // paid (docs/benchmarks.md, "Pauses and growing regions").
+    const uint64_t region_tris = regionTriangles(scene_, job.objects);
+    if (cpu_costs_ && (fused_culled || !v.fused))
+      control_.record(culled, CullCost{v.fused ? fused_cpu - fused.draw_cpu_ms : v.stats.vis_cpu_ms,
+                                       v.fused ? fused.draw_cpu_ms : threadCpuMs() - cpu_draw0,
+                                       st.triangles, region_tris});
+    else
+      control_.record(
+          culled,
+          CullCost{v.fused ? culling + fused.redraw_ms : v.stats.prepare_ms + v.stats.retrieve_ms,
+                   st.render_ms - (v.fused ? fused.redraw_ms : 0), st.triangles, region_tris});
     auto tr = Clock::now();
     r.readPixels(job.region, &rgba_);
     st.readback_ms = msSince(tr);
@@ -1143,19 +1166,25 @@ class RenderStage {
   // have cost (the probe's readback and tests, twice, as a culled fused
   // frame reads back and tests at least twice) and saved (the draw time of
   // the triangles that did not pass). Its time counts as deciding.
-  void probeCulling(const FrameJob& job, Clock::time_point t0, ClientStats& st, double* probe_ms) {
+  // `t0`, `cpu0`: when the job's drawing began, by the wall and the thread's
+  // CPU clock.
+  void probeCulling(const FrameJob& job, Clock::time_point t0, double cpu0, ClientStats& st,
+                    double* probe_ms) {
     gl_->renderer.finish();  // drawing, not probing
-    double draw_ms = msSince(t0) - st.load_ms;
+    double draw_ms = msSince(t0) - st.load_ms, draw_cpu = threadCpuMs() - cpu0;
     auto tp = Clock::now();
+    double cp = threadCpuMs();
     Decision d;
     std::vector<uint32_t> passed = culler_->probe(job, &d);
     *probe_ms = msSince(tp);
+    double probe_cpu = threadCpuMs() - cp;
     st.prepare_ms = *probe_ms - d.retrieve_ms;
     st.retrieve_ms = d.retrieve_ms;
     st.queried = d.tested;
     uint64_t region = regionTriangles(scene_, job.objects), kept = regionTriangles(scene_, passed);
-    control_.probed(CullCost{2 * *probe_ms, region ? draw_ms * double(kept) / double(region) : 0,
-                             kept, region});
+    double decide = cpu_costs_ ? probe_cpu : *probe_ms, drew = cpu_costs_ ? draw_cpu : draw_ms;
+    control_.probed(
+        CullCost{2 * decide, region ? drew * double(kept) / double(region) : 0, kept, region});
   }
 
  public:
@@ -1380,6 +1409,7 @@ class RenderStage {
   double slow_ = 1;  // DMMR_SLOW_CLIENT
   HostCacheStats host_before_;
   int rank_;
+  const bool cpu_costs_ = rasterisesOnCallingThread();  // the cost model judges by CPU time
   double last_send_ms_ = 0;
   std::vector<uint8_t> rgba_, rgb_;  // the readback's, kept across frames
   RayOptions ray_opts_;
