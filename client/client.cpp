@@ -1098,8 +1098,8 @@ class RenderStage {
       return mesh->triangles;
     };
     const double cpu_draw0 = threadCpuMs();
-    bool fused_culled = v.fused && control_.culls(regionTriangles(scene_, job.objects)),
-         culled = v.culled || fused_culled;
+    const uint64_t region_tris = regionTriangles(scene_, job.objects);
+    bool fused_culled = v.fused && control_.culls(region_tris), culled = v.culled || fused_culled;
     Decision fused;
     double probe_ms = 0;   // the cost model's probe, when it paused culling
     double fused_cpu = 0;  // drawFused's CPU time
@@ -1120,7 +1120,7 @@ class RenderStage {
       else if (!v.fused && culler_)
         culler_->adopt(job, v.visible);  // a split frame of --stages auto
       for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
-      if (probe) probeCulling(job, t0, cpu_draw0, st, &probe_ms);
+      if (probe) probeCulling(job, t0, cpu_draw0, region_tris, st, &probe_ms);
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
@@ -1139,7 +1139,6 @@ class RenderStage {
     // intervals measure whom the scheduler ran, and short ones (drawing a few
     // objects) against long ones (testing thousands) paused culling where it
     // paid (docs/benchmarks.md, "Pauses and growing regions").
-    const uint64_t region_tris = regionTriangles(scene_, job.objects);
     if (cpu_costs_ && (fused_culled || !v.fused))
       control_.record(culled, CullCost{v.fused ? fused_cpu - fused.draw_cpu_ms : v.stats.vis_cpu_ms,
                                        v.fused ? fused.draw_cpu_ms : threadCpuMs() - cpu_draw0,
@@ -1167,9 +1166,9 @@ class RenderStage {
   // frame reads back and tests at least twice) and saved (the draw time of
   // the triangles that did not pass). Its time counts as deciding.
   // `t0`, `cpu0`: when the job's drawing began, by the wall and the thread's
-  // CPU clock.
-  void probeCulling(const FrameJob& job, Clock::time_point t0, double cpu0, ClientStats& st,
-                    double* probe_ms) {
+  // CPU clock; `region`: the triangles of the job's list.
+  void probeCulling(const FrameJob& job, Clock::time_point t0, double cpu0, uint64_t region,
+                    ClientStats& st, double* probe_ms) {
     gl_->renderer.finish();  // drawing, not probing
     double draw_ms = msSince(t0) - st.load_ms, draw_cpu = threadCpuMs() - cpu0;
     auto tp = Clock::now();
@@ -1181,7 +1180,7 @@ class RenderStage {
     st.prepare_ms = *probe_ms - d.retrieve_ms;
     st.retrieve_ms = d.retrieve_ms;
     st.queried = d.tested;
-    uint64_t region = regionTriangles(scene_, job.objects), kept = regionTriangles(scene_, passed);
+    uint64_t kept = regionTriangles(scene_, passed);
     double decide = cpu_costs_ ? probe_cpu : *probe_ms, drew = cpu_costs_ ? draw_cpu : draw_ms;
     control_.probed(
         CullCost{2 * decide, region ? drew * double(kept) / double(region) : 0, kept, region});

@@ -68,9 +68,10 @@ CostModel fitCostsAndSpeeds(const std::vector<CostSample>& samples, int clients,
 // client's mean time, not by each frame's slowest (docs/benchmarks.md: the
 // scheduled frame time); the debt steers the next shares to even the means
 // out. kDebtMemory and kDebtFrames were chosen by an A/B on the medium scenes
-// (faster payback evened the means more but unbalanced single frames). A client's debt is how far
-// its time runs ahead of the clients' mean: each frame `debt = kDebtMemory * debt + (ms - mean ms)`
-// (samples of one frame; a client without a finite time keeps its debt), and `frame_ms` a smoothed
+// (faster payback evened the means more but unbalanced single frames).
+// A client's debt is how far its time runs ahead of the clients' mean: each
+// frame `debt = kDebtMemory * debt + (ms - mean ms)` (samples of one frame; a
+// client without a finite time keeps its debt), and `frame_ms` a smoothed
 // mean client time. `debt` is resized to the samples' client count.
 constexpr double kDebtMemory = 0.9;
 void updateClientDebt(const std::vector<CostSample>& frame, std::vector<double>* debt,

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "atomic_file.h"
+#include "cpu_time.h"
 #include "error.h"
 #include "guarded.h"
 #include "image.h"
@@ -423,8 +424,7 @@ class Assembler {
   // waiting for a core; otherwise the stages' wall time, which on a cluster
   // (one machine per client) is the client's cost.
   std::vector<CostSample> costSamples(const FrameRecord& rec) const {
-    const char* lp = std::getenv("LP_NUM_THREADS");
-    bool cpu = lp && std::strcmp(lp, "0") == 0;
+    const bool cpu = rasterisesOnCallingThread();
     std::vector<CostSample> out;
     for (size_t k = 0; k < rec.clients.size(); ++k) {
       const ClientStats& c = rec.clients[k];

@@ -13,14 +13,14 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from dmmr_bench.analysis import derived_schedule, in_flight_of, server_work  # noqa: E402
+from dmmr_bench.analysis import client_work, derived_schedule, in_flight_of, server_work  # noqa: E402
 
 out, reps, configs = Path(sys.argv[1]), int(sys.argv[2]), [c.split("|") for c in sys.argv[3:]]
 FROM = 8
 
 
 def cost(r, k):
-    return float(r[f"c{k}_vis_cpu_ms"]) + float(r[f"c{k}_render_cpu_ms"])
+    return client_work(r, k, "cpu")
 
 
 def run(label, rep, n, options):

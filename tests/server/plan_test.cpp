@@ -53,6 +53,15 @@ Scene gridScene(Rng& rng, int rows, int cols) {
   return s;
 }
 
+// High above gridScene's middle, looking straight down: every object in view.
+Camera topDownCamera() {
+  Camera c;
+  c.eye = {18, 200, -18};
+  c.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};  // -90 degrees about X
+  c.fovy_deg = 40;
+  return c;
+}
+
 // A camera somewhere above or around the grid, looking roughly at it.
 Camera randomCamera(Rng& rng, const Scene& s) {
   Camera c;
@@ -148,10 +157,7 @@ TEST(PlanFrame, ACameraFacingAwayFromTheSceneGivesEmptyRegions) {
 TEST(PlanFrame, OneClientGetsTheWholeFrameAndEveryVisibleObject) {
   Rng rng(34);
   Scene scene = gridScene(rng, 10, 10);
-  Camera camera;  // high above the grid's middle, looking straight down
-  camera.eye = {18, 200, -18};
-  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};  // -90 degrees about X
-  camera.fovy_deg = 40;
+  Camera camera = topDownCamera();
   FramePlan plan = planFrame(scene, camera, 256, 256, 1);
   ASSERT_EQ(plan.regions.size(), 1u);
   EXPECT_EQ(plan.regions[0].rect, (Rect{0, 0, 256, 256}));
@@ -189,10 +195,7 @@ TEST(FramePlanner, TheCostGridIsUsedOnlyForTheFrameSizeItLearnt) {
   Rng rng(36);
   Scene scene = gridScene(rng, 10, 10);
   FramePlanner planner(scene);
-  Camera camera;
-  camera.eye = {18, 200, -18};
-  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
-  camera.fovy_deg = 40;
+  Camera camera = topDownCamera();
   planner.enableCostGrid(4, 4);
   FramePlan first = planner.plan(camera, 256, 256, 2);
   EXPECT_EQ(first.grid, CostGrid::uniform(4, 4));
@@ -214,10 +217,7 @@ TEST(FramePlanner, TheCostGridIsUsedOnlyForTheFrameSizeItLearnt) {
 TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
   Rng rng(35);
   Scene scene = gridScene(rng, 10, 10);
-  Camera camera;  // the top-down view of the test above: every object in view
-  camera.eye = {18, 200, -18};
-  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
-  camera.fovy_deg = 40;
+  Camera camera = topDownCamera();
   FramePlanner planner(scene);
   planner.planningFrame(0);
   FramePlan before = planner.plan(camera, 256, 256, 2);
@@ -251,10 +251,7 @@ TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
 TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
   Rng rng(36);
   Scene scene = gridScene(rng, 10, 10);
-  Camera camera;  // top down: every object in view
-  camera.eye = {18, 200, -18};
-  camera.rotation = Quatd{-std::sqrt(0.5), 0, 0, std::sqrt(0.5)};
-  camera.fovy_deg = 40;
+  Camera camera = topDownCamera();
   FramePlanner planner(scene);
   planner.planningFrame(0);
   FramePlan first = planner.plan(camera, 256, 256, 3);
