@@ -136,8 +136,21 @@ struct Decision {
   uint64_t triangles = 0;  // fused: of the objects drawn, each counted once
 };
 
-// Draws one object, returns its triangles (0: unreadable, skipped).
-using DrawFn = std::function<uint64_t(uint32_t)>;
+// Draws the parts `parts` selects of one object, returns the triangles drawn
+// (0: unreadable, skipped).
+using DrawFn = std::function<uint64_t(uint32_t, PartDraw)>;
+
+// `sel` for `mesh`, geometry `geometry`'s, checked against its geometry file:
+// a parts.bin from another preprocessing run would otherwise select the
+// wrong triangles.
+PartDraw checkedParts(const Scene& scene, uint32_t geometry, const GpuMesh& mesh, PartDraw sel) {
+  if (sel.parts && !partsMatch(*sel.parts, mesh))
+    throw Error(fileError(scene.dir + "/parts.bin",
+                          "geometry " + std::to_string(geometry) +
+                              ": its part triangle counts do not match the submeshes of " +
+                              geometryFileName(geometry)));
+  return sel;
+}
 
 // The visibility state of one client over a walkthrough, and the tests, on
 // the GL stage it is given: the visibility stage's context (split stages) or
@@ -145,7 +158,11 @@ using DrawFn = std::function<uint64_t(uint32_t)>;
 class Culler {
  public:
   Culler(const Scene& scene, const VisibilityOptions& opts, GlStage& gl)
-      : scene_(scene), opts_(opts), gl_(gl), marked_until_(scene.objects.size(), 0) {
+      : scene_(scene),
+        opts_(opts),
+        gl_(gl),
+        marked_until_(scene.objects.size(), 0),
+        part_draws_(opts.part_draws && !scene.parts.empty()) {
     // Test hook: DMMR_FUSED_REDRAW=always takes the fused stage's redraw
     // path (the one a possible depth tie takes) in every frame.
     // DMMR_FUSED_REDRAW=equal takes the EQUAL colour pass whenever there are
@@ -165,7 +182,7 @@ class Culler {
   Decision decide(const FrameJob& job) {
     Decision d;
     auto t0 = Clock::now();
-    newJob();
+    newJob(job);
     startFrame(job);
     VisibilityPlan plan = planFor(job);
     Renderer& r = gl_.renderer;
@@ -213,13 +230,13 @@ class Culler {
   // reference does. `draw` draws one object. Returns what was drawn.
   Decision drawFused(const FrameJob& job, const DrawFn& draw) {
     Decision d;
-    newJob();
+    newJob(job);
     startFrame(job);
     VisibilityPlan plan = planFor(job);
     std::vector<uint32_t> first = mergeSorted({plan.occluders, plan.marked});
     if (opts_.predict) predictFirst(job, &first, &d);
     double c1 = threadCpuMs();
-    for (uint32_t o : first) d.triangles += draw(o);
+    for (uint32_t o : first) d.triangles += draw(o, partsToDraw(o));
     d.draw_cpu_ms += threadCpuMs() - c1;
     // The candidates' bounds need no depth: worked out while llvmpipe's
     // threads still rasterise step 1.
@@ -258,7 +275,7 @@ class Culler {
     if (!fresh.empty() && few && redraw_hook_ == RedrawHook::None && !tiesWithDrawn(fresh)) {
       auto tl = Clock::now();
       double cl = threadCpuMs();
-      for (uint32_t o : fresh) d.triangles += draw(o);
+      for (uint32_t o : fresh) d.triangles += draw(o, partsToDraw(o));
       gl_.renderer.finish();
       late_ms = msSince(tl);
       d.draw_cpu_ms += threadCpuMs() - cl;
@@ -351,7 +368,7 @@ class Culler {
         gl_.renderer.beginRedraw(rect);
         for (size_t i = 0; i < drawn.size(); ++i) {
           if (!overlaps(footprints[i], rect)) continue;
-          uint64_t t = draw(drawn[i]);
+          uint64_t t = draw(drawn[i], partsToDraw(drawn[i]));
           if (!counted[i]++ && std::binary_search(fresh.begin(), fresh.end(), drawn[i]))
             d.triangles += t;
         }
@@ -374,7 +391,7 @@ class Culler {
   // the next frame starts from what passed rather than from everything.
   // Returns what passed, ascending.
   std::vector<uint32_t> probe(const FrameJob& job, Decision* d) {
-    newJob();
+    newJob(job);
     std::vector<uint32_t> passed = testPyramid(unmarked(job), job, d);
     std::sort(passed.begin(), passed.end());
     adopt(job, passed);
@@ -391,12 +408,6 @@ class Culler {
 
  private:
   static constexpr size_t kMaxRedrawRects = 16;
-  // Objects of fewer triangles are not tested by their parts: a part test
-  // costs about the same for any object, culling saves its triangles
-  // (plants8 at 512x384: testing every object's parts cost 1 ms a frame of
-  // tests for 3.6% fewer triangles; from 256 on, plant10m keeps its 1.48;
-  // docs/benchmarks.md, "Part boxes").
-  static constexpr uint64_t kMinPartTestTriangles = 256;
   // Cells of 16 x 16 pixels for retestWhereDrawn.
   static constexpr int kCoverageShift = 4;
   // The prediction works on texels of 4x4 pixels (0.5 ms a 512x512 frame,
@@ -547,7 +558,7 @@ class Culler {
     // queries_[0] counts GL_ANY_SAMPLES_PASSED for the tie check.
     if (count_query_ == 0) gl_.context->gl().GenQueries(1, &count_query_);
     gl_.renderer.beginEqualColorPass(count_query_);
-    for (uint32_t o : fresh) *triangles += draw(o);
+    for (uint32_t o : fresh) *triangles += draw(o, partsToDraw(o));
     gl_.renderer.endEqualColorPass();
     GLuint fragments = 0;
     gl_.context->gl().GetQueryObjectuiv(count_query_, GL_QUERY_RESULT, &fragments);
@@ -571,7 +582,47 @@ class Culler {
   void drawDepth(uint32_t object) {
     const ObjectBounds& o = scene_.objects[object];
     if (const GpuMesh* mesh = gl_.meshes.acquire(o.geometry))  // null: skipped, counted
-      gl_.renderer.drawDepth(*mesh, o.transform, o.box, opts_.occluder_lod);
+      gl_.renderer.drawDepth(*mesh, o.transform, o.box, opts_.occluder_lod,
+                             checkedParts(scene_, o.geometry, *mesh, partsToDraw(object)));
+  }
+
+  // The parts of `object` this job draws (PartDraw), fixed from its first
+  // draw in the job on, so that its depth and colour passes and redraws all
+  // draw the same triangles. Until then it is what the latest test of its
+  // parts left (partsHide) or, untested, the parts that meet the region.
+  // Either leaves out only parts no pixel of the final frame's region shows:
+  // outside the region, or strictly behind depth drawn by objects that are
+  // drawn (docs/architecture.md, "Part draws").
+  PartDraw partsToDraw(uint32_t object) {
+    if (!part_draws_) return {};
+    const ObjectBounds& o = scene_.objects[object];
+    const GeometryParts& g = scene_.parts[o.geometry];
+    if (!g.ordered()) return {};
+    growMasks();
+    if (mask_stamp_[object] != stamp_) {
+      const Camera& camera = job_camera_;
+      mask_[object] = partsInRegion(o, g, projector(camera), camera, gl_.renderer.width(),
+                                    gl_.renderer.height(), bound(object, camera), job_region_);
+      mask_stamp_[object] = stamp_;
+    }
+    frozen_stamp_[object] = stamp_;
+    return {&g, mask_[object]};
+  }
+
+  // What a test of `object`'s parts left, for partsToDraw, unless a draw
+  // already fixed its parts for this job.
+  void testedParts(uint32_t object, uint8_t shown) {
+    growMasks();
+    if (frozen_stamp_[object] == stamp_) return;
+    mask_[object] = shown;
+    mask_stamp_[object] = stamp_;
+  }
+
+  void growMasks() {
+    if (mask_stamp_.size() == scene_.objects.size()) return;
+    mask_.assign(scene_.objects.size(), kAllParts);
+    mask_stamp_.assign(scene_.objects.size(), 0);
+    frozen_stamp_.assign(scene_.objects.size(), 0);
   }
 
   // `singles` (ascending): candidates likely visible, which queries test
@@ -607,25 +658,34 @@ class Culler {
   // with the object's depth bound (partBound; docs/architecture.md, "Part
   // boxes"). False when the scene has no parts for it. `seen`: a pixel where
   // the pyramid found `ob` not hidden (or -1, -1): a part whose rectangle
-  // holds it shows there too, untested.
+  // holds it shows there too, untested. With part draws every part is
+  // tested (the pyramid hides a part outside the region too) and those that
+  // may show are what partsToDraw draws of it.
   bool partsHide(uint32_t object, const Camera& camera, const ScreenBound& ob,
-                 std::pair<int, int> seen) const {
+                 std::pair<int, int> seen) {
     if (!opts_.part_boxes || scene_.parts.empty() || ob.reaches_near) return false;
     const ObjectBounds& o = scene_.objects[object];
     const GeometryParts& g = scene_.parts[o.geometry];
-    if (g.parts.empty() || !o.box.valid() || o.weight < kMinPartTestTriangles) return false;
-    const Renderer& r = gl_.renderer;
-    Box3d q = queryBoxBounds(o.box, camera, r.height());
+    if (g.parts.empty() || !o.box.valid() || o.weight < kMinPartTriangles) return false;
     std::array<ScreenBound, kMaxParts> parts;
+    size_t n = partBounds(o, g, projector(camera), camera, gl_.renderer.height(), ob, &parts);
+    const bool draws = part_draws_ && g.ordered();
     auto [sx, sy] = seen;
-    for (size_t k = 0; k < g.parts.size(); ++k) {
-      Box3d part = queryPartBounds(transformBox(o.transform, partBox(g, k)), o.box, q);
-      const ScreenBound& p = parts[k] = partBound(ob, projector(camera).rect(part));
-      if (p.reaches_near || (sx >= p.x0 && sx <= p.x1 && sy >= p.y0 && sy <= p.y1)) return false;
+    uint8_t shown = 0;
+    for (size_t k = 0; k < n; ++k) {
+      const ScreenBound& p = parts[k];
+      if (p.reaches_near || (sx >= p.x0 && sx <= p.x1 && sy >= p.y0 && sy <= p.y1)) {
+        if (!draws) return false;
+        shown = uint8_t(shown | 1u << k);
+      }
     }
-    for (size_t k = 0; k < g.parts.size(); ++k)
-      if (!pyramid_.hides(parts[k])) return false;
-    return true;
+    for (size_t k = 0; k < n; ++k)
+      if (!(shown >> k & 1) && !pyramid_.hides(parts[k])) {
+        if (!draws) return false;
+        shown = uint8_t(shown | 1u << k);
+      }
+    if (draws) testedParts(object, shown);
+    return shown == 0;
   }
 
   // The job's objects not marked visible (the fused tests' candidates),
@@ -637,14 +697,18 @@ class Culler {
     return out;
   }
 
-  // A new job: bounds kept for the last one no longer hold.
-  void newJob() {
+  // A new job: bounds and parts kept for the last one no longer hold.
+  void newJob(const FrameJob& job) {
     if (++stamp_ == 0) {  // wrapped: no stamp may match a kept one
       std::fill(bound_stamp_.begin(), bound_stamp_.end(), 0);
+      std::fill(mask_stamp_.begin(), mask_stamp_.end(), 0);
+      std::fill(frozen_stamp_.begin(), frozen_stamp_.end(), 0);
       stamp_ = 1;
       pyramid_stamp_ = 0;
     }
     projector_.reset();
+    job_camera_ = job.camera;
+    job_region_ = job.region;
   }
 
   // The job's projection (its camera; newJob drops it).
@@ -844,6 +908,13 @@ class Culler {
   mutable std::vector<uint32_t> bound_stamp_;
   uint32_t stamp_ = 1;
   mutable std::optional<ScreenProjector> projector_;  // projector(), for this job
+  Camera job_camera_;                                 // this job's (newJob)
+  Rect job_region_;
+  // partsToDraw's per job, by object: the parts to draw, valid where
+  // mask_stamp_ equals stamp_, fixed where frozen_stamp_ does.
+  bool part_draws_ = false;
+  std::vector<uint8_t> mask_;
+  std::vector<uint32_t> mask_stamp_, frozen_stamp_;
   enum class RedrawHook { None, Always, EqualAlways, EqualFails } redraw_hook_ = RedrawHook::None;
   std::vector<float> step1_depth_;  // the fused step 1's depth, kept for colorWhereEqual
   GLuint count_query_ = 0;          // colorWhereEqual's GL_SAMPLES_PASSED
@@ -1050,7 +1121,8 @@ class RenderStage {
         host_before_(host.stats()),
         rank_(opts.rank),
         ray_opts_(opts.ray),
-        effects_(effects) {
+        effects_(effects),
+        part_draws_(!opts.raytrace && opts.visibility.part_draws && !scene.parts.empty()) {
     if (opts.raytrace) {
       ray_ = std::make_unique<RayStage>(scene, host, opts);
     } else
@@ -1088,14 +1160,28 @@ class RenderStage {
     auto t0 = Clock::now();
     Renderer& r = gl_->renderer;
     r.beginFrame(job.camera, job.region);
-    auto draw = [&](uint32_t index) -> uint64_t {
+    auto draw = [&](uint32_t index, PartDraw parts) -> uint64_t {
       const ObjectBounds& o = scene_.objects[index];
       auto tl = Clock::now();
       const GpuMesh* mesh = gl_->meshes.acquire(o.geometry);
       st.load_ms += msSince(tl);
       if (!mesh) return 0;  // unreadable geometry: skipped, counted
-      r.draw(*mesh, o.transform, o.box, gl_->meshes.textures());
-      return mesh->triangles;
+      return r.draw(*mesh, o.transform, o.box, gl_->meshes.textures(),
+                    checkedParts(scene_, o.geometry, *mesh, parts));
+    };
+    // Outside the fused culler (a paused or probed job, split stages): the
+    // parts that meet the region.
+    std::optional<ScreenProjector> projector;
+    auto regionParts = [&](uint32_t index) -> PartDraw {
+      const ObjectBounds& o = scene_.objects[index];
+      if (!part_draws_ || !scene_.parts[o.geometry].ordered() || o.weight < kMinPartTriangles ||
+          !o.box.valid())
+        return {};
+      if (!projector) projector.emplace(job.camera, r.width(), r.height());
+      const GeometryParts& g = scene_.parts[o.geometry];
+      ScreenBound ob = projector->bound(queryBoxBounds(o.box, job.camera, r.height()));
+      return {&g,
+              partsInRegion(o, g, *projector, job.camera, r.width(), r.height(), ob, job.region)};
     };
     const double cpu_draw0 = threadCpuMs();
     const uint64_t region_tris = regionTriangles(scene_, job.objects);
@@ -1119,7 +1205,8 @@ class RenderStage {
         culler_->skip(job);
       else if (!v.fused && culler_)
         culler_->adopt(job, v.visible);  // a split frame of --stages auto
-      for (uint32_t index : v.visible) st.triangles += draw(index);  // ascending, as the reference
+      for (uint32_t index : v.visible)   // ascending, as the reference
+        st.triangles += draw(index, regionParts(index));
       if (probe) probeCulling(job, t0, cpu_draw0, region_tris, st, &probe_ms);
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
@@ -1413,6 +1500,7 @@ class RenderStage {
   std::vector<uint8_t> rgba_, rgb_;  // the readback's, kept across frames
   RayOptions ray_opts_;
   std::vector<SurfaceEffect> effects_;
+  bool part_draws_ = false;  // draw the parts that meet the region (VisibilityOptions)
 };
 
 // Sends the first error of any stage to the server; later stages drain their
@@ -1488,9 +1576,11 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
     // rasterising clients never traverse it.
     bool named =
         opts.raytrace && opts.ray.reflections && !(opts.mirror.empty() && opts.glass.empty());
-    // Part boxes serve the depth-pyramid tests only.
-    bool parts = !opts.raytrace && opts.visibility.part_boxes &&
-                 opts.visibility.method == VisibilityMethod::Pyramid;
+    // Part boxes serve the depth-pyramid tests and part draws.
+    bool parts =
+        !opts.raytrace &&
+        ((opts.visibility.part_boxes && opts.visibility.method == VisibilityMethod::Pyramid) ||
+         opts.visibility.part_draws);
     scene = loadScene(opts.scene, /*with_skeleton=*/opts.raytrace, parts);
     if (named)
       effects = effectsByName(scene.skeleton, scene.objects.size(), opts.mirror, opts.glass);

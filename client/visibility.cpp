@@ -146,4 +146,40 @@ void StageTrial::finished(uint32_t frame, double ms) {
   chosen_ = fused_ms_ < split_ms_ ? StageMode::Fused : StageMode::Split;
 }
 
+size_t partBounds(const ObjectBounds& o, const GeometryParts& g, const ScreenProjector& projector,
+                  const Camera& camera, int height, const ScreenBound& ob,
+                  std::array<ScreenBound, kMaxParts>* out) {
+  Box3d q = queryBoxBounds(o.box, camera, height);
+  for (size_t k = 0; k < g.parts.size(); ++k) {
+    Box3d part = queryPartBounds(transformBox(o.transform, partBox(g, k)), o.box, q);
+    (*out)[k] = partBound(ob, projector.rect(part));
+  }
+  return g.parts.size();
+}
+
+uint8_t partsMeeting(const ScreenBound* parts, size_t count, const Rect& region) {
+  uint8_t mask = 0;
+  for (size_t k = 0; k < count; ++k) {
+    const ScreenBound& p = parts[k];
+    bool meets = p.reaches_near || (!p.empty() && p.x0 < region.x1() && p.x1 >= region.x &&
+                                    p.y0 < region.y1() && p.y1 >= region.y);
+    if (meets) mask = uint8_t(mask | 1u << k);
+  }
+  return mask;
+}
+
+uint8_t partsInRegion(const ObjectBounds& o, const GeometryParts& g,
+                      const ScreenProjector& projector, const Camera& camera, int width, int height,
+                      const ScreenBound& ob, const Rect& region) {
+  if (!g.ordered() || o.weight < kMinPartTriangles || !o.box.valid() || ob.reaches_near)
+    return kAllParts;
+  bool inside = ob.x0 >= region.x && ob.x1 < region.x1() && ob.y0 >= region.y &&
+                ob.y1 < region.y1() && ob.x0 > 0 && ob.y0 > 0 && ob.x1 < width - 1 &&
+                ob.y1 < height - 1;
+  if (inside) return kAllParts;
+  std::array<ScreenBound, kMaxParts> parts;
+  size_t n = partBounds(o, g, projector, camera, height, ob, &parts);
+  return partsMeeting(parts.data(), n, region);
+}
+
 }  // namespace dmmr

@@ -11,10 +11,12 @@
 // cover strictly behind geometry that the render stage draws too.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
 #include "camera.h"
+#include "depth_pyramid.h"
 #include "formats.h"
 
 namespace dmmr {
@@ -65,11 +67,51 @@ struct VisibilityOptions {
   // part boxes (parts.bin), each part's rectangle with the object's depth
   // bound; culled when none can show. Exact; needs a scene with parts.
   bool part_boxes = true;
+  // Objects are drawn part by part (parts.bin, a scene whose geometries keep
+  // each part's triangles together): a part whose rectangle misses the
+  // region is left out, and with part_boxes and the depth pyramid so is a
+  // part the tests found hidden. Exact (docs/architecture.md, "Part draws").
+  bool part_draws = true;
   // Hierarchical query rounds: runs of this many consecutive objects are
   // tested by their union box, then the runs that pass at the next size; the
   // last size must be 1. Each round waits once for the query results.
   std::vector<uint32_t> run_sizes = {16, 4, 1};
 };
+
+// Objects of fewer triangles are neither tested nor drawn by their parts: a
+// part test costs about the same for any object, culling saves its
+// triangles (plants8 at 512x384: testing every object's parts cost 1 ms a
+// frame of tests for 3.6% fewer triangles; from 256 on, plant10m keeps its
+// 1.48; docs/benchmarks.md, "Part boxes").
+inline constexpr uint64_t kMinPartTriangles = 256;
+
+// The bounds of object `o`'s parts (`g`, its geometry's), under the camera
+// `projector` was made for (`camera`, a frame `height` pixels high), each
+// within `ob`, the object's own bound (ScreenProjector::bound of
+// queryBoxBounds(o.box, camera, height)): partBound of each part's query
+// box rectangle (queryPartBounds). Needs a valid o.box. Returns
+// g.parts.size().
+size_t partBounds(const ObjectBounds& o, const GeometryParts& g, const ScreenProjector& projector,
+                  const Camera& camera, int height, const ScreenBound& ob,
+                  std::array<ScreenBound, kMaxParts>* out);
+
+// Bit k set when parts[k] reaches the near plane or its rectangle shares a
+// pixel with `region`.
+uint8_t partsMeeting(const ScreenBound* parts, size_t count, const Rect& region);
+
+// The parts of `o` a draw in `region` of a width x height frame needs
+// (PartDraw::mask): all (kAllParts) when its geometry's parts are not
+// ordered, it has fewer than kMinPartTriangles triangles, no valid box, or
+// its bound `ob` (as for partBounds) reaches the near plane or lies within
+// the region without touching the frame's edge (bounds are clipped to the
+// frame, so one that touches it may reach beyond); otherwise those whose
+// bound meets the region (none when `ob` misses it; a part wholly outside
+// the frame has an empty bound). Every pixel of the region the object's
+// triangles can cover is covered by a part in the mask, so drawing those
+// alone changes no pixel there.
+uint8_t partsInRegion(const ObjectBounds& o, const GeometryParts& g,
+                      const ScreenProjector& projector, const Camera& camera, int width, int height,
+                      const ScreenBound& ob, const Rect& region);
 
 // Which objects of a region the stage draws as occluders, which it takes as
 // marked, and which it queries. Pure: plain sorted lists in, out.

@@ -61,7 +61,7 @@ std::vector<uint8_t> wrapContainer(const FileKind& kind, const std::vector<uint8
 
 std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind,
                                                 const std::vector<uint8_t>& file,
-                                                const std::string& path) {
+                                                const std::string& path, uint32_t* version_out) {
   auto fail = [&](const std::string& what) { throw Error(fileError(path, what)); };
   if (file.size() < 8 || std::memcmp(file.data(), kind.magic, 8) != 0)
     fail(std::string("not a dmmr ") + kind.label + " file (wrong magic)");
@@ -70,9 +70,13 @@ std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind,
   ByteReader h(file.data() + 8, 12, path);
   uint32_t version = h.u32("version");
   uint64_t size = h.u64("payload size");
-  if (version != kind.version)
+  if (version < kind.oldestRead() || version > kind.version)
     fail(std::string("unsupported ") + kind.label + " version " + std::to_string(version) +
-         " (this build reads version " + std::to_string(kind.version) + ")");
+         " (this build reads version " +
+         (kind.oldestRead() == kind.version
+              ? std::to_string(kind.version)
+              : std::to_string(kind.oldestRead()) + " to " + std::to_string(kind.version)) +
+         ")");
   uint64_t expected = kContainerOverhead + size;
   if (size > file.size() || file.size() < expected)
     fail("truncated: header promises " + std::to_string(size) + " payload bytes, file has " +
@@ -82,6 +86,7 @@ std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind,
   ByteReader t(file.data() + file.size() - 4, 4, path);
   uint32_t stored = t.u32("checksum");
   if (crc32(file.data(), file.size() - 4) != stored) fail("checksum mismatch (file is corrupt)");
+  if (version_out) *version_out = version;
   return {file.data() + 20, size_t(size)};
 }
 

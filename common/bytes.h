@@ -31,6 +31,7 @@ uint32_t manifestCrc(const std::vector<uint8_t>& file);
 class ByteWriter {
  public:
   void u8(uint8_t v) { out_.push_back(v); }
+  void u16(uint16_t v) { putLE(v); }
   void u32(uint32_t v) { putLE(v); }
   void u64(uint64_t v) { putLE(v); }
   void i32(int32_t v) { putLE(uint32_t(v)); }
@@ -67,6 +68,7 @@ class ByteReader {
   ByteReader(const uint8_t* data, size_t size, std::string path)
       : p_(data), end_(data + size), path_(std::move(path)) {}
   uint8_t u8(const char* field) { return getLE<uint8_t>(field); }
+  uint16_t u16(const char* field) { return getLE<uint16_t>(field); }
   uint32_t u32(const char* field) { return getLE<uint32_t>(field); }
   uint64_t u64(const char* field) { return getLE<uint64_t>(field); }
   int32_t i32(const char* field) { return int32_t(getLE<uint32_t>(field)); }
@@ -122,14 +124,21 @@ struct FileKind {
   char magic[9];      // 8 characters, NUL-terminated for convenience
   uint32_t version;   // the version this build writes and reads
   const char* label;  // e.g. "bounds", for messages
+  // The oldest version this build still reads (0: only `version`), for
+  // formats whose later versions only add to the earlier ones.
+  uint32_t oldest = 0;
+  uint32_t oldestRead() const { return oldest == 0 ? version : oldest; }
 };
 
 inline constexpr size_t kContainerOverhead = 8 + 4 + 8 + 4;
 
 std::vector<uint8_t> wrapContainer(const FileKind& kind, const std::vector<uint8_t>& payload);
-// Validates the container and returns the payload's [begin, size) within `file`.
+// Validates the container and returns the payload's [begin, size) within
+// `file`; its version (kind.oldestRead() to kind.version) goes to *version,
+// if given.
 std::pair<const uint8_t*, size_t> openContainer(const FileKind& kind,
                                                 const std::vector<uint8_t>& file,
-                                                const std::string& path);
+                                                const std::string& path,
+                                                uint32_t* version = nullptr);
 
 }  // namespace dmmr

@@ -492,8 +492,52 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const B
   gl_.BindVertexArray(0);
 }
 
-void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
-                         bool lod) {
+bool partsMatch(const GeometryParts& parts, const GpuMesh& mesh) {
+  if (!parts.ordered()) return true;
+  size_t n = parts.parts.size();
+  if (parts.triangles.size() != n * mesh.submeshes.size()) return false;
+  for (size_t s = 0; s < mesh.submeshes.size(); ++s) {
+    uint64_t sum = 0;
+    for (size_t k = 0; k < n; ++k) sum += parts.triangles[s * n + k];
+    if (3 * sum != mesh.submeshes[s].index_count) return false;
+  }
+  return true;
+}
+
+namespace {
+
+// Calls f(first_index, index_count) for each run of consecutive selected
+// parts of submesh `s` (number `si`), in index order; once for the whole
+// submesh when everything is selected or the parts are not ordered.
+template <typename F>
+void forEachRange(const SubMesh& s, size_t si, const PartDraw& sel, F&& f) {
+  const GeometryParts* p = sel.parts;
+  size_t n = p ? p->parts.size() : 0;
+  uint32_t all = (1u << n) - 1;
+  if (!p || !p->ordered() || (sel.mask & all) == all) {
+    f(s.first_index, s.index_count);
+    return;
+  }
+  const uint32_t* counts = p->triangles.data() + si * n;
+  uint32_t at = s.first_index, run_first = 0, run_count = 0;
+  for (size_t k = 0; k < n; ++k) {
+    uint32_t count = 3 * counts[k];
+    if (sel.mask >> k & 1) {
+      if (run_count == 0) run_first = at;
+      run_count += count;
+    } else if (run_count > 0) {
+      f(run_first, run_count);
+      run_count = 0;
+    }
+    at += count;
+  }
+  if (run_count > 0) f(run_first, run_count);
+}
+
+}  // namespace
+
+uint64_t Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                             bool lod, PartDraw parts) {
   // The position-only program: its vertex transform is the same expression as
   // the shading program's, with gl_Position invariant in both, so depth
   // matches the render pass, while the fragment work (lighting, derivatives)
@@ -506,22 +550,24 @@ void Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, cons
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
   setDepthBound(u_id_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
-  if (lod && mesh.lod_count > 0) {
-    gl_.DrawElements(GL_TRIANGLES, GLsizei(mesh.lod_count), GL_UNSIGNED_INT,
-                     reinterpret_cast<const void*>(uintptr_t(mesh.lod_first) * 4));
-    submitted(mesh.lod_count);
-  } else {
-    for (const SubMesh& s : mesh.submeshes) {
-      gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
-                       reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
-      submitted(s.index_count);
-    }
-  }
+  uint64_t indices = 0;
+  auto drawRange = [&](uint32_t first, uint32_t count) {
+    gl_.DrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(uintptr_t(first) * 4));
+    submitted(count);
+    indices += count;
+  };
+  if (lod && mesh.lod_count > 0)
+    drawRange(mesh.lod_first, mesh.lod_count);
+  else
+    for (size_t i = 0; i < mesh.submeshes.size(); ++i)
+      forEachRange(mesh.submeshes[i], i, parts, drawRange);
   gl_.BindVertexArray(0);
+  return indices / 3;
 }
 
-void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
-                    const std::vector<GLuint>& textures) {
+uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                        const std::vector<GLuint>& textures, PartDraw parts) {
   Mat4d mv = cameraRelative(object_to_world);
   Mat4d inv;
   float mvf[16], nrm[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -533,7 +579,9 @@ void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box
   gl_.UniformMatrix3fv(u_nrm_, 1, GL_FALSE, nrm);
   setDepthBound(u_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
-  for (const SubMesh& s : mesh.submeshes) {
+  uint64_t indices = 0;
+  for (size_t i = 0; i < mesh.submeshes.size(); ++i) {
+    const SubMesh& s = mesh.submeshes[i];
     bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();
     gl_.Uniform4fv(u_diffuse_, 1, s.diffuse);
     gl_.Uniform1i(u_has_texture_, tex ? 1 : 0);
@@ -541,11 +589,15 @@ void Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box
       gl_.ActiveTexture(GL_TEXTURE0);
       gl_.BindTexture(GL_TEXTURE_2D, textures[size_t(s.texture)]);
     }
-    gl_.DrawElements(GL_TRIANGLES, GLsizei(s.index_count), GL_UNSIGNED_INT,
-                     reinterpret_cast<const void*>(uintptr_t(s.first_index) * 4));
-    submitted(s.index_count);
+    forEachRange(s, i, parts, [&](uint32_t first, uint32_t count) {
+      gl_.DrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
+                       reinterpret_cast<const void*>(uintptr_t(first) * 4));
+      submitted(count);
+      indices += count;
+    });
   }
   gl_.BindVertexArray(0);
+  return indices / 3;
 }
 
 void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {

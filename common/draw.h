@@ -57,6 +57,20 @@ Box3d queryPartBounds(const Box3d& part, const Box3d& box, const Box3d& query_bo
 // front faces stay in front of it by the other half.
 Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height);
 
+// Which of a mesh's triangles a draw takes: every one, or, where its
+// geometry's triangles are grouped by part (GeometryParts::ordered), only
+// those of the parts in `mask` (bit k: part k). `parts` must match the mesh
+// (partsMatch); the caller checks, since only it knows the files.
+inline constexpr uint8_t kAllParts = 0xFF;
+struct PartDraw {
+  const GeometryParts* parts = nullptr;
+  uint8_t mask = kAllParts;
+};
+// Whether `parts` describes `mesh`'s submeshes: one row of part triangle
+// counts per submesh, each row summing to the submesh's triangles. True when
+// `parts` is not ordered (it is then never used to select).
+bool partsMatch(const GeometryParts& parts, const GpuMesh& mesh);
+
 struct Rgb {
   float r = 0.2f, g = 0.22f, b = 0.26f;
 };
@@ -116,17 +130,21 @@ class Renderer {
   void beginIdFrame(const Camera& camera, const Rect& region);
   void drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds, uint32_t id);
 
-  // Draws an object into depth only (beginDepthFrame passes), in full or,
-  // with `lod`, with its occluder level of detail where it has one (an
-  // approximation).
-  void drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds, bool lod);
+  // Draws an object into depth only (beginDepthFrame passes), the parts
+  // `parts` selects or, with `lod`, its occluder level of detail where it has
+  // one (an approximation, always whole). Returns the triangles submitted.
+  uint64_t drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                     bool lod, PartDraw parts = {});
 
-  // Draws one object; `textures` maps texture file indices to GL names.
-  // `bounds`: the object's world box (ObjectBounds::box); no fragment is drawn
-  // in front of it (depthBoundBox). An invalid box sets no bound. The same
-  // box must be passed by every draw of the object for depth to agree.
-  void draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
-            const std::vector<GLuint>& textures);
+  // Draws one object, the parts `parts` selects (in the stored order, so a
+  // subset draws its triangles in the order the whole draws them);
+  // `textures` maps texture file indices to GL names. `bounds`: the object's
+  // world box (ObjectBounds::box); no fragment is drawn in front of it
+  // (depthBoundBox). An invalid box sets no bound. The same box must be
+  // passed by every draw of the object for depth to agree. Returns the
+  // triangles submitted.
+  uint64_t draw(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                const std::vector<GLuint>& textures, PartDraw parts = {});
   // Reads `region` as RGBA8, bottom row first (GL order).
   void readPixels(const Rect& region, std::vector<uint8_t>* rgba);
   // Reads `region`'s depth (reversed-Z floats, exactly as stored), bottom row

@@ -18,7 +18,9 @@ constexpr FileKind kSkeletonKind{"DMMRSKEL", 1, "skeleton"};
 constexpr FileKind kOccludersKind{"DMMROCCL", 1, "occluders"};
 constexpr FileKind kGeometryKind{"DMMRGEOM", 1, "geometry"};
 constexpr FileKind kTextureKind{"DMMRTEXR", 1, "texture"};
-constexpr FileKind kPartsKind{"DMMRPART", 1, "part boxes"};
+// Version 2 adds where each part's triangles are (GeometryParts::triangles);
+// version 1 files still read, as parts that are not ordered.
+constexpr FileKind kPartsKind{"DMMRPART", 2, "part boxes", 1};
 
 enum GeometryFlags : uint8_t {
   kHasNormals = 1,
@@ -179,12 +181,19 @@ std::vector<uint8_t> encodeParts(const std::vector<GeometryParts>& geometries) {
     w.u8(uint8_t(g.parts.size()));
     for (const auto& q : g.parts)
       for (uint8_t c : q) w.u8(c);
+    if (g.parts.empty()) continue;
+    DMMR_CHECK(g.triangles.size() % g.parts.size() == 0 &&
+               g.triangles.size() / g.parts.size() <= UINT16_MAX);
+    w.u16(uint16_t(g.triangles.size() / g.parts.size()));
+    for (uint32_t t : g.triangles) w.u32(t);
   }
   return wrapContainer(kPartsKind, w.bytes());
 }
 
 std::vector<GeometryParts> decodeParts(const std::vector<uint8_t>& file, const std::string& path) {
-  ByteReader r = payloadReader(kPartsKind, file, path);
+  uint32_t version = 0;
+  auto [payload, size] = openContainer(kPartsKind, file, path, &version);
+  ByteReader r(payload, size, path);
   uint32_t n = r.u32("geometry count");
   constexpr size_t kRecord = 6 * 4 + 1;  // the least a geometry takes
   if (n > r.remaining() / kRecord) r.fail("truncated: geometry count exceeds the file");
@@ -209,6 +218,12 @@ std::vector<GeometryParts> decodeParts(const std::vector<uint8_t>& file, const s
       for (size_t a = 0; a < 3; ++a)
         if (q[a] > q[a + 3]) r.fail(at("geometry", i) + ": a part has min greater than max");
     }
+    if (version < 2 || count == 0) continue;
+    size_t submeshes = r.u16("submesh count");
+    if (submeshes * count > r.remaining() / 4)
+      r.fail("truncated: " + at("geometry", i) + "'s part triangles exceed the file");
+    g.triangles.resize(submeshes * count);
+    for (uint32_t& t : g.triangles) t = r.u32("part triangles");
   }
   r.finish();
   return out;

@@ -114,6 +114,15 @@ struct GeometryParts {
   // Per part: lo x, y, z, then hi x, y, z, each in 255ths of `box`'s extent
   // from box.lo (0 is box.lo, 255 box.hi exactly); lo <= hi on each axis.
   std::vector<std::array<uint8_t, 6>> parts;
+  // Where the geometry file keeps each part's triangles (version 2): within
+  // every submesh, part 0's triangles come first, then part 1's, and so on,
+  // each in its original relative order; triangles[s * parts.size() + k] is
+  // how many of submesh s's triangles are part k's. Empty when the triangles
+  // are not grouped by part (version 1, or no parts): the geometry is then
+  // only ever drawn whole. A client checks the counts against the geometry
+  // file's submeshes before drawing part by part (partRanges, draw.h).
+  std::vector<uint32_t> triangles;
+  bool ordered() const { return !triangles.empty(); }
   friend bool operator==(const GeometryParts&, const GeometryParts&) = default;
 };
 // Part k of `g` (k < g.parts.size()), decoded: within g.box.

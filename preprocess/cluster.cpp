@@ -73,20 +73,51 @@ std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size
 
 std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const uint32_t* indices,
                              size_t index_count, size_t max_parts) {
+  std::vector<uint32_t> one{uint32_t(index_count / 3)};
+  return orderByParts(positions, vertex_count, indices, index_count, one, max_parts).boxes;
+}
+
+PartOrder orderByParts(const float* positions, size_t vertex_count, const uint32_t* indices,
+                       size_t index_count, const std::vector<uint32_t>& submesh_triangles,
+                       size_t max_parts) {
   if (max_parts == 0) throw std::invalid_argument("partBoxes: max_parts is 0");
-  size_t n = index_count / 3;
-  std::vector<Box3d> boxes;
+  size_t n = index_count / 3, covered = 0;
+  for (uint32_t c : submesh_triangles) covered += c;
+  if (covered != n && index_count % 3 == 0)
+    throw std::invalid_argument("orderByParts: the submeshes do not cover the triangle list");
+  PartOrder out;
+  std::vector<uint32_t> part(n);
   for (const auto& tris : clusterTriangles(positions, vertex_count, indices, index_count,
                                            std::max<size_t>(1, (n + max_parts - 1) / max_parts))) {
     Box3d b;
-    for (uint32_t t : tris)
+    for (uint32_t t : tris) {
+      part[t] = uint32_t(out.boxes.size());
       for (size_t c = 0; c < 3; ++c) {
         const float* p = positions + 3 * size_t(indices[3 * size_t(t) + c]);
         b.expand(Vec3d{p[0], p[1], p[2]});
       }
-    boxes.push_back(b);
+    }
+    out.boxes.push_back(b);
   }
-  return boxes;
+  if (out.boxes.empty()) return out;
+  // A counting sort per submesh, stable: each part's triangles keep their order.
+  const size_t parts = out.boxes.size();
+  out.order.resize(n);
+  out.triangles.assign(submesh_triangles.size() * parts, 0);
+  std::vector<size_t> at(parts);
+  size_t first = 0;
+  for (size_t s = 0; s < submesh_triangles.size(); ++s) {
+    size_t end = first + submesh_triangles[s];
+    uint32_t* count = out.triangles.data() + s * parts;
+    for (size_t t = first; t < end; ++t) ++count[part[t]];
+    for (size_t k = 0, next = first; k < parts; ++k) {
+      at[k] = next;
+      next += count[k];
+    }
+    for (size_t t = first; t < end; ++t) out.order[at[part[t]]++] = uint32_t(t);
+    first = end;
+  }
+  return out;
 }
 
 }  // namespace dmmr

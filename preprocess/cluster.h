@@ -42,4 +42,24 @@ std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size
 std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const uint32_t* indices,
                              size_t index_count, size_t max_parts);
 
+// partBoxes' parts, and the triangle order that keeps each part's triangles
+// together within every submesh (formats.h, GeometryParts::triangles), so
+// that a client can draw some parts of a geometry and not others.
+struct PartOrder {
+  std::vector<Box3d> boxes;  // partBoxes' result
+  // The new triangle list: new triangle t is old triangle order[t]. Within
+  // submesh s (whose triangles stay within its range), part 0's triangles
+  // come first, then part 1's, each in ascending old order.
+  std::vector<uint32_t> order;
+  // triangles[s * boxes.size() + k]: how many of submesh s's triangles are
+  // part k's (empty with no parts).
+  std::vector<uint32_t> triangles;
+};
+// `submesh_triangles`: each submesh's triangle count, the submeshes lying one
+// after another from triangle 0 and covering the list (their sum is
+// index_count / 3, else std::invalid_argument). Otherwise as partBoxes.
+PartOrder orderByParts(const float* positions, size_t vertex_count, const uint32_t* indices,
+                       size_t index_count, const std::vector<uint32_t>& submesh_triangles,
+                       size_t max_parts);
+
 }  // namespace dmmr

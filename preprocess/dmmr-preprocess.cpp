@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
+#include "cli_options.h"
 #include "error.h"
 #include "preprocess.h"
 
@@ -29,6 +30,10 @@ int main(int argc, char** argv) {
                  "each its own object (0: keep meshes whole)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  dmmr::addSwitchOption(app, "--part-order", &o.part_order,
+                        "on (each part box's triangles stored together, so that clients draw "
+                        "only the parts that reach their region) or off (the input's triangle "
+                        "order); never changes a pixel of the reference");
   std::string encoding = dmmr::encodingName(o.encoding);
   app.add_option("--encoding", encoding,
                  "geometry encoding: float32 (default, exact), meshopt (exact), quantized, "

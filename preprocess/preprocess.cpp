@@ -414,11 +414,27 @@ uint32_t SceneWriter::addGeometry(GeometryData g, const Vec3d& center) {
   info.triangles = g.triangleCount();
   // Part boxes where a mesh has triangles enough to have a shape its box
   // misses (an elbow, a rotated run); below that the box is the test.
-  std::vector<Box3d> parts;
-  if (info.triangles >= kMinPartTriangles)
-    parts = partBoxes(g.positions.data(), g.vertexCount(), g.indices.data(), g.indices.size(),
-                      kMaxParts);
-  parts_.push_back(quantizeParts(info.box, parts));
+  // Each part's triangles are put together within every submesh, so that a
+  // client can draw the parts that reach its region and not the others
+  // (docs/scene-format.md, "Part boxes"); the reference draws the new order
+  // too, so every renderer draws the same list.
+  PartOrder parts;
+  if (info.triangles >= kMinPartTriangles) {
+    std::vector<uint32_t> submesh_triangles;
+    for (const SubMesh& s : g.submeshes) submesh_triangles.push_back(s.index_count / 3);
+    parts = orderByParts(g.positions.data(), g.vertexCount(), g.indices.data(), g.indices.size(),
+                         submesh_triangles, kMaxParts);
+    if (opts_.part_order) {
+      std::vector<uint32_t> reordered(g.indices.size());
+      for (size_t t = 0; t < parts.order.size(); ++t)
+        std::copy_n(g.indices.data() + 3 * size_t(parts.order[t]), 3, reordered.data() + 3 * t);
+      g.indices = std::move(reordered);
+    } else {
+      parts.triangles.clear();
+    }
+  }
+  parts_.push_back(quantizeParts(info.box, parts.boxes));
+  parts_.back().triangles = std::move(parts.triangles);
   addLevelOfDetail(&g);
   uint32_t index = uint32_t(geometries_.size());
   geometries_.push_back(info);

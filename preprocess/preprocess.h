@@ -40,6 +40,11 @@ struct PreprocessOptions {
   // into clusters of at most this many (preprocess/cluster.h), each its own
   // object, under one group per mesh; 0 keeps every mesh whole.
   uint64_t cluster_triangles = 4096;
+  // Within every geometry of enough triangles to have part boxes, each
+  // part's triangles are stored together (parts.bin version 2), so that
+  // clients can draw only the parts that reach their region; off keeps the
+  // input's triangle order (parts unordered, drawn whole).
+  bool part_order = true;
   // How geometry files store vertices and indices (formats.h); recorded in
   // the manifest. The default is exact; Quantized and QuantizedMeshopt are
   // lossy (docs/scene-format.md gives their error bounds).

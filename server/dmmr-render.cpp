@@ -74,6 +74,11 @@ int main(int argc, char** argv) {
                         "depth-pyramid tests: on (an object whose box passes is tested again "
                         "by the preprocessor's part boxes) or off (its box alone); never "
                         "changes a pixel");
+  dmmr::addSwitchOption(app, "--part-draws", &c.visibility.part_draws,
+                        "on (an object is drawn part by part: parts outside the client's region, "
+                        "and with --part-boxes parts the depth-pyramid tests found hidden, are "
+                        "left out; needs a scene preprocessed with part order, parts.bin "
+                        "version 2) or off (objects drawn whole); never changes a pixel");
   std::string weights = "fitted";
   app.add_option("--weights", weights,
                  "division weights: fitted (a cost model of objects drawn and tested, "

@@ -622,9 +622,13 @@ std::vector<GeometryParts> sampleParts() {
   GeometryParts a;
   a.box = {{-1, -2, -3}, {1, 2, 3}};
   a.parts = {{0, 0, 0, 255, 255, 255}, {10, 20, 30, 40, 50, 60}};
-  GeometryParts b;  // no parts (a small mesh): its box is the test
+  a.triangles = {3, 4, 0, 5};  // two submeshes: 3 + 4 and 0 + 5 triangles
+  GeometryParts b;             // no parts (a small mesh): its box is the test
   b.box = {{0.5, 0.5, 0.5}, {0.5, 0.75, 1}};
-  return {a, b};
+  GeometryParts c;  // parts, not ordered (preprocessed with --part-order off)
+  c.box = {{0, 0, 0}, {1, 1, 1}};
+  c.parts = {{0, 0, 0, 1, 1, 1}};
+  return {a, b, c};
 }
 
 TEST(PartsFormat, RoundTrip) {
@@ -642,17 +646,48 @@ TEST(PartsFormat, PayloadLayoutMatchesHandEncoding) {
   g.parts = {{1, 2, 3, 4, 5, 6}};
   Bytes f = encodeParts({g});
   EXPECT_EQ(std::string(f.begin(), f.begin() + 8), "DMMRPART");
-  // Count, box as f32 (1.0f = 0x3F800000, 2.0f = 0x40000000), part count, part.
-  EXPECT_EQ(payloadOf(f), (Bytes{1, 0,    0, 0, 0, 0, 0x80, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-                                 0, 0x40, 0, 0, 0, 0, 0,    0,    0, 0, 1, 1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(f[8], 2);  // version
+  // Count, box as f32 (1.0f = 0x3F800000, 2.0f = 0x40000000), part count,
+  // part, submesh count (u16; 0: not ordered).
+  const Bytes head = {1, 0, 0,    0,                             // geometry count
+                      0, 0, 0x80, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0,  // lo
+                      0, 0, 0,    0x40, 0, 0, 0, 0, 0, 0, 0, 0,  // hi
+                      1, 1, 2,    3,    4, 5, 6};
+  Bytes unordered = head;
+  unordered.insert(unordered.end(), {0, 0});
+  EXPECT_EQ(payloadOf(f), unordered);
+  // Ordered, one submesh: then one u32 per part, its triangles (258).
+  g.triangles = {258};
+  Bytes ordered = head;
+  ordered.insert(ordered.end(), {1, 0, 2, 1, 0, 0});
+  EXPECT_EQ(payloadOf(encodeParts({g})), ordered);
+}
+
+TEST(PartsFormat, ReadsVersion1AsPartsNotOrdered) {
+  // Version 1 had no submesh count or part triangles.
+  GeometryParts g;
+  g.box = {{1, 0, 0}, {2, 0, 0}};
+  g.parts = {{1, 2, 3, 4, 5, 6}};
+  Bytes f = encodeParts({g});
+  Bytes payload = payloadOf(f);
+  payload.resize(payload.size() - 2);
+  Bytes v1 = wrapContainer(FileKind{"DMMRPART", 1, "part boxes"}, payload);
+  std::vector<GeometryParts> read = decodeParts(v1, "p.bin");
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0], g);
+  EXPECT_FALSE(read[0].ordered());
 }
 
 TEST(PartsFormat, RejectsWrongMagicAndUnknownVersion) {
   EXPECT_DMMR_ERROR(decodeParts(encodeOccluders({1}), "p.bin"), "p.bin", "magic");
   Bytes f = encodeParts(sampleParts());
-  f[8] = 2;
+  f[8] = 3;
   recrc(f);
-  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin", "version 2");
+  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin",
+                    "version 3 (this build reads version 1 to 2)");
+  f[8] = 0;
+  recrc(f);
+  EXPECT_DMMR_ERROR(decodeParts(f, "p.bin"), "p.bin", "version 0");
 }
 
 TEST(PartsFormat, RejectsEveryTruncation) {
@@ -697,6 +732,13 @@ TEST(PartsFormat, RejectsBadBoxes) {
 TEST(PartsFormat, RejectsHostileCountWithoutAllocating) {
   Bytes f = encodeParts(sampleParts());
   expectFailsWithoutHugeAllocation(patched(f, 0, {0xFF, 0xFF, 0xFF, 0xFF}), decodePartsFile);
+}
+
+TEST(PartsFormat, RejectsASubmeshCountPastTheFile) {
+  // Geometry 0's submesh count follows its box, part count and 2 parts.
+  Bytes f = encodeParts(sampleParts());
+  EXPECT_DMMR_ERROR(decodeParts(patched(f, 4 + 24 + 1 + 12, {0xFF, 0xFF}), "p.bin"), "p.bin",
+                    "geometry 0's part triangles exceed the file");
 }
 
 // Quantised parts decode to boxes holding the originals and inside the

@@ -2,11 +2,14 @@
 // subdivided monument, instanced twice on a grid and once rotated)
 // preprocessed whole and in clusters. dmmr-reference draws the clustered
 // scene exactly as the whole one (tolerance zero: clusters keep every
-// triangle's floats and order, and ties between clusters of one mesh need
-// two triangles with equal depth at a pixel, which this scene has none of),
-// and dmmr-render with 1 and 3 clients equals the reference on the
-// clustered scene.
+// triangle's floats, and the order of a mesh's triangles, which part order
+// changes within each geometry, matters only where two of them have equal
+// depth at a pixel, which this scene has none of), and dmmr-render with 1
+// and 3 clients equals the reference on the clustered scene, drawing
+// objects part by part or whole.
 #include <gtest/gtest.h>
+
+#include <cstdio>
 
 #include <osg/MatrixTransform>
 #include <osgDB/WriteFile>
@@ -95,3 +98,34 @@ TEST_P(ClustersDistributed, FramesArePixelIdenticalToTheReference) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Clients, ClustersDistributed, testing::Values(1, 3));
+
+// Part draws (--part-draws, the default): only the parts of an object that
+// reach the client's region, and are not found hidden, are drawn. In both
+// stage modes, with 1 and 3 clients, every frame stays exact, and the
+// clients draw fewer triangles between them than when drawing whole objects.
+TEST(Clusters, PartDrawsDrawLessAndStayExact) {
+  DenseScene& s = denseScene();
+  for (const char* stages : {"split", "fused"})
+    for (int clients : {1, 3}) {
+      double drawn[2] = {0, 0};
+      for (int on : {0, 1}) {
+        std::string out =
+            s.dir / ("part-draws" + std::to_string(on) + stages + std::to_string(clients));
+        int status = 0;
+        std::string log = test::runCapture(
+            "timeout 120 " + test::mpirun(clients + 1) + " " + test::tool("dmmr-render") + kView +
+                " --scene " + s.scene(1024) + " --walkthrough " + s.path + " --out " + out +
+                " --stages " + stages + " --cost-model off --part-draws " + (on ? "on" : "off") +
+                " --stats " + out + ".csv",
+            &status);
+        ASSERT_EQ(status, 0) << log;
+        expectIdentical(s.reference(1024), out);
+        for (const test::CsvRow& row : test::readCsv(out + ".csv"))
+          for (int k = 1; k <= clients; ++k)
+            drawn[on] += row["c" + std::to_string(k) + "_triangles"];
+      }
+      EXPECT_LT(drawn[1], drawn[0]) << stages << ", " << clients << " clients";
+      std::printf("%s, %d clients: triangles drawn %.0f by parts, %.0f whole\n", stages, clients,
+                  drawn[1], drawn[0]);
+    }
+}

@@ -77,8 +77,9 @@ std::string writeModel(const TempDir& dir) {
 }
 
 PreprocessStats run(const std::string& model, const std::string& out, uint64_t cluster,
-                    double lod = 0, uint64_t occluderMax = 10000) {
+                    double lod = 0, uint64_t occluderMax = 10000, bool part_order = true) {
   PreprocessOptions o;
+  o.part_order = part_order;
   o.inputs = {model};
   o.out = out;
   o.progress = false;
@@ -112,8 +113,11 @@ class Clusters : public testing::Test {
   static void SetUpTestSuite() {
     dir_ = new TempDir;
     std::string model = writeModel(*dir_);
-    run(model, *dir_ / "whole", 0);
-    stats_ = run(model, *dir_ / "split", 100);
+    // In the input's order (--part-order off), so that the clusters can be
+    // checked against the mesh's own order; "ordered" as by default.
+    run(model, *dir_ / "whole", 0, 0, 10000, false);
+    stats_ = run(model, *dir_ / "split", 100, 0, 10000, false);
+    run(model, *dir_ / "ordered", 100);
   }
   static void TearDownTestSuite() {
     delete dir_;
@@ -197,6 +201,56 @@ TEST_F(Clusters, ClustersHoldTheMeshsTrianglesExactlyInTheirOrder) {
     }
     for (size_t t = 0; t < seen.size(); ++t) EXPECT_EQ(seen[t], 1) << "triangle " << t;
   }
+}
+
+// By default each cluster keeps its parts' triangles together (parts.bin
+// version 2): the same triangles, unchanged, each part's in the mesh's
+// order, every one within its part's box; --part-order off leaves the
+// parts unordered.
+TEST_F(Clusters, PartOrderKeepsEachPartsTrianglesTogetherInTheirOrder) {
+  Scene whole = loadScene(*dir_ / "whole", true, true);
+  Scene split = loadScene(*dir_ / "split", true, true);
+  Scene ordered = loadScene(*dir_ / "ordered", true, true);
+  ASSERT_EQ(ordered.parts.size(), split.parts.size());
+  for (const GeometryParts& g : split.parts) EXPECT_FALSE(g.ordered());
+  std::vector<std::string> all = triangleKeys(loadGeometry(whole, whole.objects[0].geometry));
+  std::map<std::string, size_t> original;
+  for (size_t t = 0; t < all.size(); ++t) original[all[t]] = t;
+  std::vector<int> seen(all.size(), 0);
+  for (uint32_t k = 0; k < 16; ++k) {
+    const ObjectBounds& o = ordered.objects[k];
+    GeometryData g = loadGeometry(ordered, o.geometry);
+    const GeometryParts& p = ordered.parts[o.geometry];
+    ASSERT_TRUE(p.ordered()) << "cluster " << k;
+    ASSERT_EQ(p.triangles.size(), p.parts.size() * g.submeshes.size());
+    std::vector<std::string> keys = triangleKeys(g);
+    size_t t = 0;
+    for (size_t s = 0; s < g.submeshes.size(); ++s) {
+      uint32_t in_submesh = 0;
+      for (size_t part = 0; part < p.parts.size(); ++part) {
+        Box3d box = partBox(p, part);
+        size_t last = 0;
+        for (uint32_t i = 0; i < p.triangles[s * p.parts.size() + part]; ++i, ++t) {
+          auto it = original.find(keys.at(t));
+          ASSERT_NE(it, original.end()) << "cluster " << k << " triangle " << t << " changed";
+          ++seen[it->second];
+          if (i > 0) EXPECT_GT(it->second, last) << "cluster " << k << " part " << part;
+          last = it->second;
+          for (int c = 0; c < 3; ++c) {
+            const float* v = &g.positions[3 * size_t(g.indices[3 * t + size_t(c)])];
+            for (int a = 0; a < 3; ++a) {
+              EXPECT_GE(v[a], box.lo[a]) << "cluster " << k << " part " << part;
+              EXPECT_LE(v[a], box.hi[a]) << "cluster " << k << " part " << part;
+            }
+          }
+        }
+        in_submesh += p.triangles[s * p.parts.size() + part];
+      }
+      EXPECT_EQ(3 * in_submesh, g.submeshes[s].index_count) << "cluster " << k;
+    }
+    EXPECT_EQ(t, g.triangleCount());
+  }
+  for (size_t t = 0; t < seen.size(); ++t) EXPECT_EQ(seen[t], 1) << "triangle " << t;
 }
 
 TEST(ClusterOptions, OccludersAndLevelsOfDetailArePerCluster) {

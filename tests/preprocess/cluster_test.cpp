@@ -238,3 +238,67 @@ TEST(PartBoxes, EmptyListHasNoPartsAndBadInputThrows) {
   EXPECT_THROW(partBoxes(m.positions.data(), 1, m.indices.data(), m.indices.size(), 8),
                std::invalid_argument);
 }
+
+// orderByParts: a permutation that keeps every triangle in its submesh,
+// puts each part's triangles of a submesh together in ascending order, with
+// counts that add up; the boxes are partBoxes'.
+TEST(OrderByParts, EachSubmeshHoldsItsPartsInOrder) {
+  for (uint64_t seed = 1; seed <= 20; ++seed)
+    for (size_t n : {size_t(1), size_t(9), size_t(100), size_t(1001)}) {
+      Mesh m = randomMesh(seed, n, seed % 2 == 0);
+      // Up to 3 submeshes of random sizes (some empty).
+      uint64_t s = seed * 77;
+      std::vector<uint32_t> submeshes;
+      size_t left = n;
+      for (int k = 0; k < 2; ++k) {
+        uint32_t c = uint32_t(splitmix(s) % (left + 1));
+        submeshes.push_back(c);
+        left -= c;
+      }
+      submeshes.push_back(uint32_t(left));
+      PartOrder o = orderByParts(m.positions.data(), m.positions.size() / 3, m.indices.data(),
+                                 m.indices.size(), submeshes, 8);
+      std::vector<Box3d> boxes = partBoxes(m.positions.data(), m.positions.size() / 3,
+                                           m.indices.data(), m.indices.size(), 8);
+      ASSERT_EQ(o.boxes, boxes);
+      const size_t parts = boxes.size();
+      ASSERT_EQ(o.order.size(), n);
+      ASSERT_EQ(o.triangles.size(), submeshes.size() * parts);
+      std::vector<int> seen(n, 0);
+      size_t t = 0, first = 0;
+      for (size_t sm = 0; sm < submeshes.size(); ++sm) {
+        size_t end = first + submeshes[sm];
+        for (size_t k = 0; k < parts; ++k) {
+          uint32_t last = 0;
+          for (uint32_t i = 0; i < o.triangles[sm * parts + k]; ++i, ++t) {
+            uint32_t old = o.order.at(t);
+            ++seen.at(old);
+            ASSERT_GE(old, first) << "seed " << seed << ": left its submesh";
+            ASSERT_LT(old, end) << "seed " << seed << ": left its submesh";
+            if (i > 0) ASSERT_GT(old, last) << "seed " << seed << ": part out of order";
+            last = old;
+            for (int c = 0; c < 3; ++c) {
+              const float* p = &m.positions[3 * size_t(m.indices[3 * size_t(old) + size_t(c)])];
+              for (int a = 0; a < 3; ++a) {
+                ASSERT_LE(boxes[k].lo[a], double(p[a])) << "seed " << seed << " part " << k;
+                ASSERT_GE(boxes[k].hi[a], double(p[a])) << "seed " << seed << " part " << k;
+              }
+            }
+          }
+        }
+        ASSERT_EQ(t, end) << "seed " << seed << ": submesh " << sm << "'s counts";
+        first = end;
+      }
+      for (size_t i = 0; i < n; ++i) ASSERT_EQ(seen[i], 1) << "seed " << seed << " triangle " << i;
+    }
+}
+
+TEST(OrderByParts, RejectsSubmeshesThatDoNotCoverTheList) {
+  Mesh m = randomMesh(5, 10);
+  EXPECT_THROW(orderByParts(m.positions.data(), m.positions.size() / 3, m.indices.data(),
+                            m.indices.size(), {4, 5}, 8),
+               std::invalid_argument);
+  EXPECT_THROW(orderByParts(m.positions.data(), m.positions.size() / 3, m.indices.data(),
+                            m.indices.size(), {4, 7}, 8),
+               std::invalid_argument);
+}
