@@ -46,11 +46,11 @@ struct Splitter {
   }
 };
 
-}  // namespace
-
-std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size_t vertex_count,
-                                                    const uint32_t* indices, size_t index_count,
-                                                    size_t max_triangles) {
+// clusterTriangles' clusters in the split tree's order (each half's before
+// the other's), which keeps neighbours in space neighbours in the list.
+std::vector<std::vector<uint32_t>> splitTree(const float* positions, size_t vertex_count,
+                                             const uint32_t* indices, size_t index_count,
+                                             size_t max_triangles) {
   if (max_triangles == 0) throw std::invalid_argument("clusterTriangles: max_triangles is 0");
   if (index_count % 3) throw std::invalid_argument("clusterTriangles: not a triangle list");
   size_t n = index_count / 3;
@@ -67,6 +67,16 @@ std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size
   for (size_t t = 0; t < n; ++t) tris[t] = uint32_t(t);
   Splitter s{centroids, max_triangles, &out};
   s.split(tris, 0, n);
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size_t vertex_count,
+                                                    const uint32_t* indices, size_t index_count,
+                                                    size_t max_triangles) {
+  std::vector<std::vector<uint32_t>> out =
+      splitTree(positions, vertex_count, indices, index_count, max_triangles);
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
   return out;
 }
@@ -87,8 +97,11 @@ PartOrder orderByParts(const float* positions, size_t vertex_count, const uint32
     throw std::invalid_argument("orderByParts: the submeshes do not cover the triangle list");
   PartOrder out;
   std::vector<uint32_t> part(n);
-  for (const auto& tris : clusterTriangles(positions, vertex_count, indices, index_count,
-                                           std::max<size_t>(1, (n + max_parts - 1) / max_parts))) {
+  // Parts in the split tree's order: a region's edge or an occluder's
+  // outline across the mesh then tends to leave a run of consecutive parts,
+  // drawn with one call.
+  for (const auto& tris : splitTree(positions, vertex_count, indices, index_count,
+                                    std::max<size_t>(1, (n + max_parts - 1) / max_parts))) {
     Box3d b;
     for (uint32_t t : tris) {
       part[t] = uint32_t(out.boxes.size());

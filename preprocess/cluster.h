@@ -36,9 +36,11 @@ std::vector<std::vector<uint32_t>> clusterTriangles(const float* positions, size
 
 // The part boxes of a triangle list (formats.h, GeometryParts): the boxes
 // of clusterTriangles' clusters of ceil(triangles / max_parts) triangles, in
-// cluster order. Every triangle lies whole (all three corners) in one of
-// them; there are at most max_parts (>= 1), none for an empty list. Same
-// inputs and exceptions as clusterTriangles.
+// the order of its split tree (each half's clusters before the other's, so
+// that parts next to each other in the list are next to each other in
+// space). Every triangle lies whole (all three corners) in one of them;
+// there are at most max_parts (>= 1), none for an empty list. Same inputs
+// and exceptions as clusterTriangles.
 std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const uint32_t* indices,
                              size_t index_count, size_t max_parts);
 

@@ -42,6 +42,7 @@ configs=(  # label|dmmr-render options; pyramid-split is the default
   "pyramid-fused-nocost|--visibility pyramid --stages fused --cost-model off"
   "pyramid-fused-predict|--visibility pyramid --stages fused --predict on"
   "pyramid-fused-noparts|--visibility pyramid --stages fused --part-boxes off"
+  "pyramid-fused-wholedraws|--visibility pyramid --stages fused --part-draws off"
   "auto|--stages auto"
   "off|--visibility off"
 )

@@ -10,7 +10,7 @@ import statistics as st
 import sys
 
 out, reps, scenes = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
-CONFIGS = ["base", "queries-split", "pyramid-split", "pyramid-split-nocost", "pyramid-fused", "pyramid-fused-predict", "pyramid-fused-nopredict", "pyramid-fused-noparts", "pyramid-fused-nocost", "auto", "off"]
+CONFIGS = ["base", "queries-split", "pyramid-split", "pyramid-split-nocost", "pyramid-fused", "pyramid-fused-predict", "pyramid-fused-nopredict", "pyramid-fused-noparts", "pyramid-fused-wholedraws", "pyramid-fused-nocost", "auto", "off"]
 STAGES = ["prepare_ms", "retrieve_ms", "render_ms", "readback_ms", "compress_ms"]
 
 

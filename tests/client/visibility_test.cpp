@@ -483,3 +483,133 @@ TEST(StageTrial, UndecidedUntilBothBlocksAreIn) {
 }
 
 }  // namespace
+
+// ---- part draws ---------------------------------------------------------------
+
+TEST(PartsMeeting, RectanglesInAndOutOfTheRegion) {
+  Rect region{10, 20, 30, 40};  // pixels 10..39 x 20..59
+  std::array<ScreenBound, 5> parts{};
+  parts[0] = ScreenBound{false, 0, 0, 9, 100};    // left of it
+  parts[1] = ScreenBound{false, 39, 59, 80, 80};  // its last pixel
+  parts[2] = ScreenBound{false, 15, 25, 14, 30};  // empty
+  parts[3] = ScreenBound{true};                   // reaches the near plane
+  parts[4] = ScreenBound{false, 40, 20, 50, 59};  // right of it
+  EXPECT_EQ(partsMeeting(parts.data(), parts.size(), region), 0b01010);
+  EXPECT_EQ(partsMeeting(parts.data(), 0, region), 0);
+}
+
+// A fixed-seed property test of partsInRegion against an independent
+// rasterisation: random objects (rotated, scaled, some far from the origin)
+// whose geometry box is split into 8 parts, random regions, and random
+// triangles inside each part; every pixel centre of the region a triangle
+// covers must belong to a part in the mask. Also checks that the mask
+// leaves parts out at all (or the test would pass on kAllParts).
+TEST(PartsInRegion, EveryCoveredPixelOfTheRegionIsInAPartOfTheMask) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  const int width = 96, height = 64;
+  Camera camera;
+  camera.aspect = double(width) / height;
+  camera.fovy_deg = 50;
+  camera.near = 0.05;
+  const double f = 1 / std::tan(camera.fovy_deg * M_PI / 360);
+  size_t covered = 0, partial_masks = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    Vec3d offset = trial % 3 == 0 ? Vec3d{1e6, -2e6, 5e5} : Vec3d{0, 0, 0};
+    camera.eye = offset;
+    Quatd q{u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) + 0.2};
+    double n = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+    q = {q.x / n, q.y / n, q.z / n, q.w / n};
+    ObjectBounds o;
+    o.weight = 4 * kMinPartTriangles;
+    o.transform =
+        Mat4d::translate(offset + Vec3d{8 * (u(rng) - 0.5), 6 * (u(rng) - 0.5), -4 - 8 * u(rng)}) *
+        Mat4d::rotation(q) * Mat4d::scale({0.5 + 2 * u(rng), 0.5 + 2 * u(rng), 0.5 + 2 * u(rng)});
+    Box3d local{{-1, -1, -1}, {1, 1, 1}};
+    o.box = transformBox(o.transform, local);
+    std::vector<Box3d> octants;
+    for (int k = 0; k < 8; ++k) {
+      Box3d b;
+      for (int a = 0; a < 3; ++a) {
+        b.lo[a] = (k >> a & 1) ? 0.0 : -1.0;
+        b.hi[a] = (k >> a & 1) ? 1.0 : 0.0;
+      }
+      octants.push_back(b);
+    }
+    GeometryParts g = quantizeParts(local, octants);
+    g.triangles.assign(8, 1);
+    Rect region{int(u(rng) * width * 0.7), int(u(rng) * height * 0.7), 0, 0};
+    region.w = 1 + int(u(rng) * (width - region.x - 1));
+    region.h = 1 + int(u(rng) * (height - region.y - 1));
+    ScreenProjector projector(camera, width, height);
+    ScreenBound ob = projector.bound(queryBoxBounds(o.box, camera, height));
+    uint8_t mask = partsInRegion(o, g, projector, camera, width, height, ob, region);
+    if (mask != kAllParts && mask != 0) ++partial_masks;
+    Mat4d view = viewMatrix(camera);
+    for (int k = 0; k < 8; ++k)
+      for (int t = 0; t < 6; ++t) {
+        double px[3], py[3];
+        bool in_front = true;
+        for (int c = 0; c < 3; ++c) {
+          Vec3d p;
+          for (int a = 0; a < 3; ++a)
+            p[a] = octants[size_t(k)].lo[a] +
+                   u(rng) * (octants[size_t(k)].hi[a] - octants[size_t(k)].lo[a]);
+          Vec3d e = view.transformPoint(o.transform.transformPoint(p));
+          if (-e.z <= camera.near) in_front = false;
+          px[c] = (f / camera.aspect * e.x / -e.z + 1) / 2 * width;
+          py[c] = (f * e.y / -e.z + 1) / 2 * height;
+        }
+        if (!in_front) continue;  // such objects reach the near plane: all parts
+        auto edge = [&](int a, int b, double x, double y) {
+          return (px[b] - px[a]) * (y - py[a]) - (py[b] - py[a]) * (x - px[a]);
+        };
+        double area = edge(0, 1, px[2], py[2]);
+        if (area == 0) continue;
+        for (int y = region.y; y < region.y1(); ++y)
+          for (int x = region.x; x < region.x1(); ++x) {
+            double cx = x + 0.5, cy = y + 0.5;
+            double e0 = edge(0, 1, cx, cy), e1 = edge(1, 2, cx, cy), e2 = edge(2, 0, cx, cy);
+            bool inside =
+                area > 0 ? (e0 >= 0 && e1 >= 0 && e2 >= 0) : (e0 <= 0 && e1 <= 0 && e2 <= 0);
+            if (!inside) continue;
+            ++covered;
+            ASSERT_TRUE(mask >> k & 1)
+                << "trial " << trial << ": part " << k << " covers pixel (" << x << ", " << y
+                << ") of " << region << ", mask " << int(mask);
+          }
+      }
+  }
+  EXPECT_GT(covered, 10000u);
+  EXPECT_GT(partial_masks, 30u);
+}
+
+TEST(PartsInRegion, WholeWhereThePartsCannotHelp) {
+  const int width = 96, height = 64;
+  Camera camera;
+  camera.aspect = double(width) / height;
+  ObjectBounds o;
+  o.weight = kMinPartTriangles;
+  o.transform = Mat4d::translate({0, 0, -10});
+  Box3d local{{-1, -1, -1}, {1, 1, 1}};
+  o.box = transformBox(o.transform, local);
+  GeometryParts g =
+      quantizeParts(local, {Box3d{{-1, -1, -1}, {0, 1, 1}}, Box3d{{0, -1, -1}, {1, 1, 1}}});
+  g.triangles = {5, 5};
+  ScreenProjector projector(camera, width, height);
+  ScreenBound ob = projector.bound(queryBoxBounds(o.box, camera, height));
+  Rect left{0, 0, width / 2 - 4, height};  // the object's left half, roughly
+  EXPECT_EQ(partsInRegion(o, g, projector, camera, width, height, ob, left), 0b01);
+  Rect right{width / 2 + 4, 0, width / 2 - 4, height};
+  EXPECT_EQ(partsInRegion(o, g, projector, camera, width, height, ob, right), 0b10);
+  Rect whole{0, 0, width, height};  // it lies inside, off the frame's edge
+  EXPECT_EQ(partsInRegion(o, g, projector, camera, width, height, ob, whole), kAllParts);
+  Rect corner{0, 0, 3, 3};  // misses it
+  EXPECT_EQ(partsInRegion(o, g, projector, camera, width, height, ob, corner), 0);
+  GeometryParts unordered = g;
+  unordered.triangles.clear();
+  EXPECT_EQ(partsInRegion(o, unordered, projector, camera, width, height, ob, left), kAllParts);
+  ObjectBounds small = o;
+  small.weight = kMinPartTriangles - 1;
+  EXPECT_EQ(partsInRegion(small, g, projector, camera, width, height, ob, left), kAllParts);
+}

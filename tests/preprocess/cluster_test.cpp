@@ -189,11 +189,23 @@ TEST(PartBoxes, EveryTriangleLiesWholeInAPart) {
         Mesh m = randomMesh(seed, n, seed % 2 == 0);
         std::vector<Box3d> parts = partBoxes(m.positions.data(), m.positions.size() / 3,
                                              m.indices.data(), m.indices.size(), max);
+        // The same clusters as clusterTriangles', in another order.
         auto clusters = cluster(m, (n + max - 1) / max);
         ASSERT_EQ(parts.size(), clusters.size());
         ASSERT_LE(parts.size(), max);
-        for (size_t k = 0; k < clusters.size(); ++k)
-          for (uint32_t t : clusters[k])
+        std::vector<uint32_t> one{uint32_t(n)};
+        PartOrder o = orderByParts(m.positions.data(), m.positions.size() / 3, m.indices.data(),
+                                   m.indices.size(), one, max);
+        ASSERT_EQ(o.boxes, parts);
+        std::vector<std::vector<uint32_t>> byPart(parts.size());
+        for (size_t k = 0, t = 0; k < parts.size(); ++k)
+          for (uint32_t i = 0; i < o.triangles[k]; ++i) byPart[k].push_back(o.order[t++]);
+        std::vector<std::vector<uint32_t>> sorted = byPart;
+        std::sort(sorted.begin(), sorted.end());
+        std::sort(clusters.begin(), clusters.end());
+        ASSERT_EQ(sorted, clusters) << "seed " << seed << " n " << n;
+        for (size_t k = 0; k < byPart.size(); ++k)
+          for (uint32_t t : byPart[k])
             for (int c = 0; c < 3; ++c) {
               const float* p = &m.positions[3 * size_t(m.indices[3 * size_t(t) + size_t(c)])];
               for (int a = 0; a < 3; ++a) {
