@@ -102,6 +102,10 @@ int main(int argc, char** argv) {
     b.box = {{0.5, 0.5, 0.5}, {0.5, 0.75, 1}};
     put("parts", "empty", encodeParts({}));
     put("parts", "two", encodeParts({a, b}));
+    // corpus/parts/two-v1 is "two" as version 1 wrote it, kept as a seed
+    // for the older version's path.
+    a.triangles = {3, 4, 0, 5};  // ordered by part, two submeshes
+    put("parts", "ordered", encodeParts({a, b}));
   }
 
   put("geometry", "plain", encodeGeometry(triangles(false, false, false, 1)));
