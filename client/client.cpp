@@ -163,6 +163,11 @@ class Culler {
         gl_(gl),
         marked_until_(scene.objects.size(), 0),
         part_draws_(opts.part_draws && !scene.parts.empty()) {
+    if (part_draws_) {
+      mask_.assign(scene.objects.size(), kAllParts);
+      mask_stamp_.assign(scene.objects.size(), 0);
+      frozen_stamp_.assign(scene.objects.size(), 0);
+    }
     // Test hook: DMMR_FUSED_REDRAW=always takes the fused stage's redraw
     // path (the one a possible depth tie takes) in every frame.
     // DMMR_FUSED_REDRAW=equal takes the EQUAL colour pass whenever there are
@@ -598,7 +603,6 @@ class Culler {
     const ObjectBounds& o = scene_.objects[object];
     const GeometryParts& g = scene_.parts[o.geometry];
     if (!g.ordered()) return {};
-    growMasks();
     if (mask_stamp_[object] != stamp_) {
       const Camera& camera = job_camera_;
       mask_[object] = partsInRegion(o, g, projector(camera), camera, gl_.renderer.width(),
@@ -612,17 +616,9 @@ class Culler {
   // What a test of `object`'s parts left, for partsToDraw, unless a draw
   // already fixed its parts for this job.
   void testedParts(uint32_t object, uint8_t shown) {
-    growMasks();
     if (frozen_stamp_[object] == stamp_) return;
     mask_[object] = shown;
     mask_stamp_[object] = stamp_;
-  }
-
-  void growMasks() {
-    if (mask_stamp_.size() == scene_.objects.size()) return;
-    mask_.assign(scene_.objects.size(), kAllParts);
-    mask_stamp_.assign(scene_.objects.size(), 0);
-    frozen_stamp_.assign(scene_.objects.size(), 0);
   }
 
   // `singles` (ascending): candidates likely visible, which queries test
@@ -1174,9 +1170,7 @@ class RenderStage {
     std::optional<ScreenProjector> projector;
     auto regionParts = [&](uint32_t index) -> PartDraw {
       const ObjectBounds& o = scene_.objects[index];
-      if (!part_draws_ || !scene_.parts[o.geometry].ordered() || o.weight < kMinPartTriangles ||
-          !o.box.valid())
-        return {};
+      if (!part_draws_ || !drawnByParts(o, scene_.parts[o.geometry])) return {};
       if (!projector) projector.emplace(job.camera, r.width(), r.height());
       const GeometryParts& g = scene_.parts[o.geometry];
       ScreenBound ob = projector->bound(queryBoxBounds(o.box, job.camera, r.height()));

@@ -171,8 +171,7 @@ uint8_t partsMeeting(const ScreenBound* parts, size_t count, const Rect& region)
 uint8_t partsInRegion(const ObjectBounds& o, const GeometryParts& g,
                       const ScreenProjector& projector, const Camera& camera, int width, int height,
                       const ScreenBound& ob, const Rect& region) {
-  if (!g.ordered() || o.weight < kMinPartTriangles || !o.box.valid() || ob.reaches_near)
-    return kAllParts;
+  if (!drawnByParts(o, g) || ob.reaches_near) return kAllParts;
   bool inside = ob.x0 >= region.x && ob.x1 < region.x1() && ob.y0 >= region.y &&
                 ob.y1 < region.y1() && ob.x0 > 0 && ob.y0 > 0 && ob.x1 < width - 1 &&
                 ob.y1 < height - 1;

@@ -85,6 +85,12 @@ struct VisibilityOptions {
 // 1.48; docs/benchmarks.md, "Part boxes").
 inline constexpr uint64_t kMinPartTriangles = 256;
 
+// Whether `o` can be drawn part by part: its geometry's parts (`g`) are
+// ordered, it has kMinPartTriangles or more and a valid box.
+inline bool drawnByParts(const ObjectBounds& o, const GeometryParts& g) {
+  return g.ordered() && o.weight >= kMinPartTriangles && o.box.valid();
+}
+
 // The bounds of object `o`'s parts (`g`, its geometry's), under the camera
 // `projector` was made for (`camera`, a frame `height` pixels high), each
 // within `ob`, the object's own bound (ScreenProjector::bound of
@@ -100,8 +106,7 @@ size_t partBounds(const ObjectBounds& o, const GeometryParts& g, const ScreenPro
 uint8_t partsMeeting(const ScreenBound* parts, size_t count, const Rect& region);
 
 // The parts of `o` a draw in `region` of a width x height frame needs
-// (PartDraw::mask): all (kAllParts) when its geometry's parts are not
-// ordered, it has fewer than kMinPartTriangles triangles, no valid box, or
+// (PartDraw::mask): all (kAllParts) when it is not drawnByParts, or
 // its bound `ob` (as for partBounds) reaches the near plane or lies within
 // the region without touching the frame's edge (bounds are clipped to the
 // frame, so one that touches it may reach beyond); otherwise those whose

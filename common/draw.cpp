@@ -492,6 +492,13 @@ void Renderer::drawId(const GpuMesh& mesh, const Mat4d& object_to_world, const B
   gl_.BindVertexArray(0);
 }
 
+uint64_t Renderer::drawIndices(uint32_t first, uint32_t count) {
+  gl_.DrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(uintptr_t(first) * 4));
+  submitted(count);
+  return count;
+}
+
 bool partsMatch(const GeometryParts& parts, const GpuMesh& mesh) {
   if (!parts.ordered()) return true;
   size_t n = parts.parts.size();
@@ -551,12 +558,7 @@ uint64_t Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, 
   setDepthBound(u_id_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
   uint64_t indices = 0;
-  auto drawRange = [&](uint32_t first, uint32_t count) {
-    gl_.DrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
-                     reinterpret_cast<const void*>(uintptr_t(first) * 4));
-    submitted(count);
-    indices += count;
-  };
+  auto drawRange = [&](uint32_t first, uint32_t count) { indices += drawIndices(first, count); };
   if (lod && mesh.lod_count > 0)
     drawRange(mesh.lod_first, mesh.lod_count);
   else
@@ -589,12 +591,8 @@ uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const
       gl_.ActiveTexture(GL_TEXTURE0);
       gl_.BindTexture(GL_TEXTURE_2D, textures[size_t(s.texture)]);
     }
-    forEachRange(s, i, parts, [&](uint32_t first, uint32_t count) {
-      gl_.DrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
-                       reinterpret_cast<const void*>(uintptr_t(first) * 4));
-      submitted(count);
-      indices += count;
-    });
+    forEachRange(s, i, parts,
+                 [&](uint32_t first, uint32_t count) { indices += drawIndices(first, count); });
   }
   gl_.BindVertexArray(0);
   return indices / 3;

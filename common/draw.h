@@ -211,6 +211,9 @@ class Renderer {
   }
   // Counts a draw call's triangles and flushes when flush_every_ are due.
   void submitted(uint64_t indices);
+  // Draws `count` indices from `first` of the bound VAO (submitted() too);
+  // returns count.
+  uint64_t drawIndices(uint32_t first, uint32_t count);
   Mat4d cameraRelative(const Mat4d& object_to_world) const;
   // Depth test EQUAL, no depth writes, colour written or masked, counting
   // into `query` (`target`); the end restores the frame's state.

@@ -90,10 +90,11 @@ std::vector<Box3d> partBoxes(const float* positions, size_t vertex_count, const 
 PartOrder orderByParts(const float* positions, size_t vertex_count, const uint32_t* indices,
                        size_t index_count, const std::vector<uint32_t>& submesh_triangles,
                        size_t max_parts) {
-  if (max_parts == 0) throw std::invalid_argument("partBoxes: max_parts is 0");
+  if (max_parts == 0) throw std::invalid_argument("orderByParts: max_parts is 0");
+  if (index_count % 3) throw std::invalid_argument("orderByParts: not a triangle list");
   size_t n = index_count / 3, covered = 0;
   for (uint32_t c : submesh_triangles) covered += c;
-  if (covered != n && index_count % 3 == 0)
+  if (covered != n)
     throw std::invalid_argument("orderByParts: the submeshes do not cover the triangle list");
   PartOrder out;
   std::vector<uint32_t> part(n);
