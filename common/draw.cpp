@@ -55,20 +55,25 @@ float entryDepth() {
 }
 )";
 
-// For the shaders that draw geometry (shading, depth and id): each fragment's
-// depth clamped to its object's bound box's entry depth. Rasterisers
+// For the shaders that draw geometry (shading, depth and id): a fragment
+// nearer than its object's bound box's entry depth is dropped. Rasterisers
 // interpolate depth from plane equations that, for a sliver triangle seen
 // almost edge-on, can put a covered pixel far nearer than any of the
 // triangle's vertices (seen on llvmpipe: 14 m in front of its object's box
-// at 200 m). Clamped, no fragment of an object lies in front of its box,
-// which the occlusion queries' exactness rests on; for every other fragment
-// the clamp changes nothing, as the bound box is wider than the object's.
-// Depth only ever decreases (reversed-Z), hence depth_less; a ray that
-// misses the box gives depth 0, which never passes GL_GREATER against the
-// cleared 0.
+// at 200 m). Dropped, no fragment of an object lies in front of its box,
+// which the occlusion tests' exactness rests on; every other fragment keeps
+// its interpolated depth, as the bound box is wider than the object's. A ray
+// that misses the box gives entry depth 0: its fragments are dropped too,
+// as are those at depth 0 or behind (reversed-Z), which could never pass
+// GL_GREATER against the cleared 0 but could tie with it under GL_EQUAL.
+// Discarding rather than writing gl_FragDepth (a clamp, until 2026-12-04)
+// keeps the depth test before the shader on llvmpipe, so hidden fragments
+// are not shaded (docs/benchmarks.md, "Depth bound by discard").
 const char* kBoundedDepth = R"(
-layout(depth_less) out float gl_FragDepth;
-float boundedDepth() { return max(min(gl_FragCoord.z, entryDepth()), 0.0); }
+bool outsideBound() {
+  float z = gl_FragCoord.z;
+  return !(z > 0.0 && z <= entryDepth());
+}
 )";
 
 // Two-sided headlight shading. Without normals, the facet normal comes from
@@ -93,7 +98,8 @@ void main() {
   vec4 base = u_diffuse * v_col;
   if (u_has_texture != 0) base *= texture(u_tex, v_uv);
   o_color = vec4(base.rgb * (0.3 + 0.7 * lambert), 1.0);
-  gl_FragDepth = boundedDepth();
+  // Last: the derivatives above (and the texture's) need the whole quad.
+  if (outsideBound()) discard;
 }
 )";
 
@@ -112,8 +118,8 @@ const char* kIdFragmentShader = R"(
 uniform vec4 u_color;
 out vec4 o_color;
 void main() {
+  if (outsideBound()) discard;
   o_color = u_color;
-  gl_FragDepth = boundedDepth();
 }
 )";
 

@@ -52,7 +52,7 @@ Box3d queryBoxBounds(const Box3d& box, const Camera& camera, int height);
 // covers every pixel centre its triangles can cover.
 Box3d queryPartBounds(const Box3d& part, const Box3d& box, const Box3d& query_box);
 // The box whose entry depth bounds every fragment of an object (the shaders'
-// boundedDepth): `box` widened by half of queryBoxBounds' margin, so that it
+// outsideBound drops the rest): `box` widened by half of queryBoxBounds' margin, so that it
 // still encloses the object after rounding, while the query box's rasterised
 // front faces stay in front of it by the other half.
 Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height);

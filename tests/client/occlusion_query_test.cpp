@@ -282,6 +282,48 @@ TEST_F(OcclusionQuery, SliverTrianglesSeenEdgeOnStayBehindTheirQueryBox) {
             << ", bounded: " << bounded << "\n";
 }
 
+// The bound drops a fragment nearer than its object's box rather than
+// clamping its depth (which would draw it at the box's entry depth and cost
+// llvmpipe its depth test before the shader): a quad at 5 m drawn with a
+// box 8 to 10 m away leaves colour and depth as cleared, in the shading
+// pass (draw) and the depth pass (drawDepth) alike; with its own box it
+// covers the frame's middle.
+TEST_F(OcclusionQuery, FragmentsInFrontOfTheirDepthBoundAreDroppedNotClamped) {
+  Renderer& r = *renderer_;
+  const GlApi& gl = ctx_->gl();
+  GeometryData wall = quad(-2, 2, -2, 2, -5);
+  meshes_.push_back(r.upload(wall));
+  const GpuMesh& m = meshes_.back();
+  const Box3d behind = box({-2, -2, -10}, {2, 2, -8}), own = positionBox(wall);
+  const Rect frame{0, 0, kSize, kSize};
+  auto written = [&](const std::vector<float>& depth) {
+    return std::count_if(depth.begin(), depth.end(), [](float d) { return d != 0.f; });
+  };
+  std::vector<uint8_t> cleared, px;
+  std::vector<float> depth;
+  r.beginFrame(camera_, frame);
+  r.readPixels(frame, &cleared);
+  r.draw(m, Mat4d::identity(), behind, {});
+  r.readPixels(frame, &px);
+  r.readDepth(frame, &depth);
+  EXPECT_TRUE(px == cleared) << "a fragment in front of its bound was drawn";
+  EXPECT_EQ(written(depth), 0);
+  r.beginDepthFrame(camera_, frame);
+  r.drawDepth(m, Mat4d::identity(), behind, false);
+  r.readDepth(frame, &depth);
+  EXPECT_EQ(written(depth), 0) << "the depth pass wrote a fragment in front of its bound";
+  // The wall spans |x|, |y| <= 0.4 of the view: 26 x 26 pixel centres.
+  r.beginFrame(camera_, frame);
+  r.draw(m, Mat4d::identity(), own, {});
+  r.readDepth(frame, &depth);
+  EXPECT_EQ(written(depth), 26 * 26);
+  r.beginDepthFrame(camera_, frame);
+  r.drawDepth(m, Mat4d::identity(), own, false);
+  r.readDepth(frame, &depth);
+  EXPECT_EQ(written(depth), 26 * 26);
+  gl.check("depth bound test");
+}
+
 // The depth-pyramid test's contract on the real rasteriser: every pixel an
 // object writes lies in its query box's screen bound and no nearer than the
 // bound's depth there (depth_pyramid.h). Random triangles inside random
