@@ -189,4 +189,15 @@ std::vector<double> clientDebtFactors(const std::vector<double>& debt, double fr
   return f;
 }
 
+std::vector<double> projectedDebt(const std::vector<double>& debt,
+                                  const std::vector<std::vector<double>>& in_flight,
+                                  double frame_ms) {
+  std::vector<double> d = debt;
+  if (!(frame_ms > 0) || !std::isfinite(frame_ms)) return d;
+  for (const std::vector<double>& f : in_flight)
+    for (size_t k = 0; k < d.size() && k < f.size(); ++k)
+      if (std::isfinite(f[k])) d[k] -= frame_ms * (1 - f[k]);
+  return d;
+}
+
 }  // namespace dmmr

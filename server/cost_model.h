@@ -82,5 +82,18 @@ void updateClientDebt(const std::vector<CostSample>& frame, std::vector<double>*
 constexpr double kDebtFrames = 2;
 std::vector<double> clientDebtFactors(const std::vector<double>& debt, double frame_ms,
                                       int clients);
+// The debt each client will have once the frames planned but not yet
+// measured are, if each goes as planned: its debt less, for every such
+// frame, what that frame's factor f (clientDebtFactors) takes off its time,
+// frame_ms * (1 - f). `in_flight`: those frames' factors, per frame and
+// client (a missing or non-finite factor counts as 1). Catching up plans
+// on this, not on the measured debt: the measured debt is as old as the
+// frames in flight, and paying it again in each frame planned before the
+// first payment shows is a loop that rings, the clients taking turns at
+// being the slowest (per-frame max/mean 1.32-1.43 with 4 clients against
+// 1.27-1.35 without catching up, docs/benchmarks.md "Catching up").
+std::vector<double> projectedDebt(const std::vector<double>& debt,
+                                  const std::vector<std::vector<double>>& in_flight,
+                                  double frame_ms);
 
 }  // namespace dmmr

@@ -41,8 +41,9 @@ std::vector<uint32_t> FramePlanner::drawnLately(const std::vector<uint32_t>& obj
   return out;
 }
 
-void FramePlanner::reportCosts(const std::vector<CostSample>& samples) {
+void FramePlanner::reportCosts(uint32_t frame, const std::vector<CostSample>& samples) {
   std::lock_guard<std::mutex> lock(cost_mu_);
+  in_flight_.erase(in_flight_.begin(), in_flight_.upper_bound(frame));
   cost_frames_.push_back(samples);
   if (cost_frames_.size() > kCostFrames) cost_frames_.erase(cost_frames_.begin());
   std::vector<CostSample> all;
@@ -67,9 +68,19 @@ CostModel FramePlanner::costModel() const {
 
 std::vector<double> FramePlanner::shares(int clients) const {
   std::lock_guard<std::mutex> lock(cost_mu_);
+  return sharesLocked(clients, nullptr);
+}
+
+std::vector<double> FramePlanner::sharesLocked(int clients, std::vector<double>* factors) const {
+  if (factors) factors->clear();
   if (!model_.fitted || speeds_.size() != size_t(clients)) return {};
   if (!catch_up_) return speeds_;
-  std::vector<double> f = clientDebtFactors(debt_, frame_ms_, clients);
+  std::vector<std::vector<double>> planned;
+  for (const auto& [frame, f] : in_flight_)
+    if (frame < frame_) planned.push_back(f);  // a plan of this frame again: not ahead of it
+  std::vector<double> f =
+      clientDebtFactors(projectedDebt(debt_, planned, frame_ms_), frame_ms_, clients);
+  if (factors) *factors = f;
   for (int k = 0; k < clients; ++k) f[size_t(k)] *= speeds_[size_t(k)];
   return f;
 }
@@ -244,8 +255,13 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   {
     std::lock_guard<std::mutex> lock(cost_mu_);
     if (model_.fitted) costs.pixel_weight = model_.per_pixel * kUnitsPerMs;
+    std::vector<double> factors;
+    costs.speeds = sharesLocked(clients, &factors);  // empty before a fit: equal shares
+    if (!factors.empty()) {
+      in_flight_[frame_] = std::move(factors);
+      while (in_flight_.size() > kMaxInFlight) in_flight_.erase(in_flight_.begin());
+    }
   }
-  costs.speeds = shares(clients);  // empty before a fit: equal shares
   plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients, costs);
   for (const Region& r : plan.regions)
     plan.planned.push_back(double(r.weight) + costs.pixel_weight * double(r.rect.area()));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <ostream>
@@ -128,15 +129,21 @@ class FramePlanner {
   // the cost model and the clients' speeds to them (cost_model.h), and from
   // then on weighs objects and pixels in fitted nanoseconds and gives each
   // client a share in proportion to its speed. Thread-safe, like reportDrawn.
-  void reportCosts(const std::vector<CostSample>& samples);
+  // `frame`: the frame the samples are of (frames reported in any order);
+  // frames up to it are no longer in flight for catching up.
+  void reportCosts(uint32_t frame, const std::vector<CostSample>& samples);
   static constexpr size_t kCostFrames = 24;
   // The model and speeds the next plan uses (for logs and tests).
   CostModel costModel() const;
   std::vector<double> speeds() const;
   // Each client's share of the next frame (DivisionCosts::speeds): its
-  // speed, times its debt correction (clientDebtFactors) when catching up is
-  // on. Empty before a fit.
+  // speed, times its debt correction when catching up is on
+  // (clientDebtFactors of its projectedDebt: the debt less what the frames
+  // planned but not yet reported will pay). Empty before a fit.
   std::vector<double> shares(int clients) const;
+  // Frames planned and not yet reported whose catching-up factors are kept
+  // (older ones are dropped: a frame never reported must not steer forever).
+  static constexpr size_t kMaxInFlight = 16;
   // Catching up (cost_model.h; on by default): a client whose measured time
   // ran above the clients' mean gets smaller shares until it has caught up.
   // Moves split lines only: never changes a pixel.
@@ -190,7 +197,14 @@ class FramePlanner {
   CostModel model_;
   std::vector<double> speeds_;
   std::vector<double> debt_;  // per client: ms behind the clients' mean (updateClientDebt)
-  double frame_ms_ = 0;       // the clients' mean time per frame, smoothed
+  // Per frame planned (planningFrame) and not yet reported: the catching-up
+  // factors its plan used. Written by plan(), which is const to its callers
+  // but hands out these factors: mutable, under cost_mu_.
+  mutable std::map<uint32_t, std::vector<double>> in_flight_;
+  // shares() with cost_mu_ held; `factors` (if given) gets the catching-up
+  // factors used (empty when none).
+  std::vector<double> sharesLocked(int clients, std::vector<double>* factors) const;
+  double frame_ms_ = 0;  // the clients' mean time per frame, smoothed
   bool catch_up_ = true;
   CostGrid grid_;                         // empty: no correction
   int grid_width_ = 0, grid_height_ = 0;  // the frame the grid was last corrected for

@@ -340,7 +340,7 @@ class Assembler {
     const bool grid = planner_ && opts_.cost_grid && rec.planned.size() == size_t(clients_);
     std::vector<CostSample> samples;
     if (planner_ && (opts_.fitted_weights || grid)) samples = costSamples(rec);
-    if (planner_ && opts_.fitted_weights) planner_->reportCosts(samples);
+    if (planner_ && opts_.fitted_weights) planner_->reportCosts(frame, samples);
     if (grid) {
       // A slow client's time, scaled to a typical client's: the grid learns
       // where the screen costs, the fitted speeds which client is slow.

@@ -8,7 +8,8 @@
 # (default "4 16").
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
 # (default: the weights visible and fitted, each without and with the cost
-# grid). Every run with LP_NUM_THREADS=0, so that a client's stage threads'
+# grid); options beginning with @DIR run DIR/dmmr-render (another build's bin
+# directory) with the rest, an A/B of two builds. Every run with LP_NUM_THREADS=0, so that a client's stage threads'
 # CPU time is its whole cost, free of waiting for one of this machine's cores
 # (the scaling suite's method). DMMR_BENCH_REPS rounds (default 2), the
 # configurations alternating in each; every frame is compared with
@@ -73,8 +74,13 @@ for r in $(seq 1 "$reps"); do
       IFS='|' read -r n label opts <<<"$c"
       run=$out/$s-c$n-$label-r$r
       rm -rf "$run"
+      render=$bin/dmmr-render
+      if [[ $opts == @* ]]; then
+        read -r dir opts <<<"$opts"
+        render=${dir#@}/dmmr-render
+      fi
       # shellcheck disable=SC2086 # opts is a list of options
-      LP_NUM_THREADS=0 "${launch[@]}" -np $((n + 1)) -x LP_NUM_THREADS $bin/dmmr-render \
+      LP_NUM_THREADS=0 "${launch[@]}" -np $((n + 1)) -x LP_NUM_THREADS $render \
         --scene "$sc" --walkthrough "$path" --out "$run" --stats "$run.csv" --width $w \
         --height $h --no-progress $opts >/dev/null 2>"$run.log"
       diff_frames "$out/$s-ref" "$run" "$run.cmp.csv"

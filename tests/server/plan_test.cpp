@@ -306,7 +306,7 @@ TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
       s.ms = predictMs(truth, s);
       samples.push_back(s);
     }
-    planner.reportCosts(samples);
+    planner.reportCosts(uint32_t(frame), samples);
   }
   ASSERT_TRUE(planner.costModel().fitted);
   EXPECT_EQ(planner.speeds(), (std::vector<double>{1, 1, 1}));  // the model explains the times
@@ -319,6 +319,49 @@ TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
   planner.setCatchUp(false);
   EXPECT_EQ(planner.shares(3), planner.speeds());
   EXPECT_TRUE(planner.shares(4).empty());  // fitted for 3 clients only
+}
+
+// Frames planned but not yet reported already pay part of a debt: the next
+// frame's share is cut less for each of them, and once they are reported
+// (with no new times) the measured debt alone steers again.
+TEST(FramePlanner, FramesInFlightPayPartOfTheDebt) {
+  Rng rng(38);
+  Scene scene = gridScene(rng, 4, 4);
+  FramePlanner planner(scene);
+  const CostModel truth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
+  for (int frame = 0; frame < 12; ++frame) {
+    std::vector<CostSample> samples;
+    for (int k = 0; k < 3; ++k) {
+      // The same work for all, but client 0 has a quarter more in the last frame.
+      double more = k == 0 && frame == 11 ? 1.25 : 1.0;
+      CostSample s;
+      s.client = k;
+      s.drawn = more * (50 + 10 * frame);
+      s.triangles = more * (1e4 + 3e3 * frame);
+      s.tested = more * (200 + 50 * (frame % 5));
+      s.pixels = 1e5 + 1e4 * (frame % 3);
+      s.fill = more * (1e5 + 4e4 * (frame % 4));
+      s.ms = predictMs(truth, s);
+      samples.push_back(s);
+    }
+    planner.reportCosts(uint32_t(frame), samples);
+  }
+  ASSERT_TRUE(planner.costModel().fitted);
+  planner.planningFrame(12);
+  std::vector<double> measured = planner.shares(3);
+  ASSERT_EQ(measured.size(), 3u);
+  ASSERT_GT(measured[0], 0.5);  // not clamped: the test below would be empty
+  ASSERT_LT(measured[0], 1.0);
+  planner.plan(topDownCamera(), 256, 256, 3);
+  planner.planningFrame(13);
+  std::vector<double> one = planner.shares(3);
+  EXPECT_GT(one[0], measured[0]);
+  EXPECT_LT(one[1], measured[1]);
+  planner.plan(topDownCamera(), 256, 256, 3);
+  planner.planningFrame(14);
+  EXPECT_GT(planner.shares(3)[0], one[0]);
+  planner.reportCosts(13, {});
+  EXPECT_EQ(planner.shares(3), measured);
 }
 
 TEST(FramePlanner, HintsAreTheObjectsDrawnInTheLatestReportedFrames) {
