@@ -19,13 +19,6 @@ namespace {
 // which the fused stage's tie query and EQUAL colour pass count on. Without
 // it a compiler may contract the two programs' products differently (an
 // FMA in one, not the other).
-//
-// What changes from draw to draw (the depth bound's planes, a submesh's
-// colour) is a vertex shader uniform handed to the fragment shader as a flat
-// varying, which passes it bit for bit: on llvmpipe a fragment shader
-// uniform changed between draws cost about 16 us of CPU a draw call, a
-// vertex shader one about 1 us (hot_bench depth; docs/benchmarks.md,
-// "Per-draw values as flat varyings").
 const char* kVertexShader = R"(#version 450 core
 invariant gl_Position;
 layout(location = 0) in vec3 a_pos;
@@ -35,38 +28,48 @@ layout(location = 3) in vec2 a_uv;
 uniform mat4 u_mv;
 uniform mat4 u_proj;
 uniform mat3 u_nrm;
-uniform vec3 u_bound[3];
-uniform vec4 u_diffuse;
-uniform int u_has_texture;
 out vec3 v_eye;
 out vec3 v_nrm;
 out vec4 v_col;
 out vec2 v_uv;
-flat out vec3 v_bound[3];
-flat out vec4 v_diffuse;
-flat out int v_has_texture;
 void main() {
   vec4 e = u_mv * vec4(a_pos, 1.0);
   v_eye = e.xyz;
   v_nrm = u_nrm * a_nrm;
   v_col = a_col;
   v_uv = a_uv;
-  v_bound = u_bound;
-  v_diffuse = u_diffuse;
-  v_has_texture = u_has_texture;
   gl_Position = u_proj * e;
 }
 )";
 
-// Fragment depth from the entry-depth planes of a box (camera.h,
-// entryDepthPlanes, set by Renderer::setDepthBound): where the ray through the
-// fragment's pixel centre enters the box. Shared by every fragment shader.
-const char* kDepthPlanes = R"(#version 450 core
+// The entry-depth planes of the object's box (camera.h, entryDepthPlanes, set
+// by Renderer::setDepthBound) reach the fragment shader as BOUND: a fragment
+// shader uniform in the shading program, a flat varying from a vertex shader
+// uniform in the position-only program (kBoxVertexShader), which passes the
+// same floats bit for bit. On llvmpipe a fragment shader uniform changed
+// between draws costs about 16 us of CPU a draw call, a vertex shader one
+// about 1 us (`hot_bench depth`), which matters for the depth passes' many
+// small occluders; in the shading program the flat varyings cost more per
+// triangle and fragment than they saved (15-25% more client CPU on
+// monument4m and skulls25; docs/benchmarks.md, "The depth bound as a flat
+// varying"). Each holds the #version line.
+const char* kBoundUniform = R"(#version 450 core
+uniform vec3 u_bound[3];
+#define BOUND u_bound
+)";
+const char* kBoundFlat = R"(#version 450 core
 flat in vec3 v_bound[3];
+#define BOUND v_bound
+)";
+
+// Fragment depth from the entry-depth planes: where the ray through the
+// fragment's pixel centre enters the box. Shared by every fragment shader
+// that draws geometry.
+const char* kDepthPlanes = R"(
 uniform vec2 u_ndc_scale;
 float entryDepth() {
   vec3 p = vec3(gl_FragCoord.xy * u_ndc_scale - 1.0, 1.0);
-  precise float d = min(min(dot(v_bound[0], p), dot(v_bound[1], p)), dot(v_bound[2], p));
+  precise float d = min(min(dot(BOUND[0], p), dot(BOUND[1], p)), dot(BOUND[2], p));
   return d;
 }
 )";
@@ -95,8 +98,8 @@ bool outsideBound() {
 // Two-sided headlight shading. Without normals, the facet normal comes from
 // screen-space derivatives of the eye position (flat shading).
 const char* kFragmentShader = R"(
-flat in vec4 v_diffuse;
-flat in int v_has_texture;
+uniform vec4 u_diffuse;
+uniform int u_has_texture;
 uniform sampler2D u_tex;
 in vec3 v_eye;
 in vec3 v_nrm;
@@ -111,8 +114,8 @@ void main() {
   float le = length(v_eye);
   vec3 v = le > 0.0 ? -v_eye / le : vec3(0.0, 0.0, 1.0);
   float lambert = abs(dot(n, v));
-  vec4 base = v_diffuse * v_col;
-  if (v_has_texture != 0) base *= texture(u_tex, v_uv);
+  vec4 base = u_diffuse * v_col;
+  if (u_has_texture != 0) base *= texture(u_tex, v_uv);
   o_color = vec4(base.rgb * (0.3 + 0.7 * lambert), 1.0);
   // Last: the derivatives above (and the texture's) need the whole quad.
   if (outsideBound()) discard;
@@ -212,9 +215,11 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw Error("the frame's framebuffer is incomplete");
 
-  program_ = link(gl_, kVertexShader, {kDepthPlanes, kBoundedDepth, kFragmentShader});
+  program_ =
+      link(gl_, kVertexShader, {kBoundUniform, kDepthPlanes, kBoundedDepth, kFragmentShader});
   box_program_ = link(gl_, kBoxVertexShader, {kBoxFragmentShader});
-  id_program_ = link(gl_, kBoxVertexShader, {kDepthPlanes, kBoundedDepth, kIdFragmentShader});
+  id_program_ =
+      link(gl_, kBoxVertexShader, {kBoundFlat, kDepthPlanes, kBoundedDepth, kIdFragmentShader});
   u_bound_ = gl_.GetUniformLocation(program_, "u_bound");
   u_id_bound_ = gl_.GetUniformLocation(id_program_, "u_bound");
   for (GLuint p : {program_, id_program_}) {
