@@ -176,6 +176,9 @@ class FramePlanner {
                                     int width, int height, const CostGrid& grid = {},
                                     double* spawned_cpu_ms = nullptr) const;
   CostGrid gridFor(int width, int height) const;  // the grid to plan with (empty: none)
+  // shares() with cost_mu_ held; `factors` (if given) gets the catching-up
+  // factors used (empty when none).
+  std::vector<double> sharesLocked(int clients, std::vector<double>* factors) const;
   struct Projected {
     Box3d box;
     uint64_t weight;
@@ -201,9 +204,6 @@ class FramePlanner {
   // factors its plan used. Written by plan(), which is const to its callers
   // but hands out these factors: mutable, under cost_mu_.
   mutable std::map<uint32_t, std::vector<double>> in_flight_;
-  // shares() with cost_mu_ held; `factors` (if given) gets the catching-up
-  // factors used (empty when none).
-  std::vector<double> sharesLocked(int clients, std::vector<double>* factors) const;
   double frame_ms_ = 0;  // the clients' mean time per frame, smoothed
   bool catch_up_ = true;
   CostGrid grid_;                         // empty: no correction

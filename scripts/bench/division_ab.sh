@@ -9,9 +9,10 @@
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
 # (default: the weights visible and fitted, each without and with the cost
 # grid); options beginning with @DIR run DIR/dmmr-render (another build's bin
-# directory) with the rest, an A/B of two builds. Every run with LP_NUM_THREADS=0, so that a client's stage threads'
-# CPU time is its whole cost, free of waiting for one of this machine's cores
-# (the scaling suite's method). DMMR_BENCH_REPS rounds (default 2), the
+# directory) with the rest, an A/B of two builds. Every run with
+# LP_NUM_THREADS=0, so that a client's stage threads' CPU time is its whole
+# cost, free of waiting for one of this machine's cores (the scaling suite's
+# method). DMMR_BENCH_REPS rounds (default 2), the
 # configurations alternating in each; every frame is compared with
 # dmmr-reference's.
 # usage: scripts/bench/division_ab.sh   (writes out/bench/division-ab/, prints Markdown)

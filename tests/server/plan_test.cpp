@@ -283,6 +283,19 @@ TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
     EXPECT_EQ(planner.forecast(camera, 256, 256, r).drawn_lately, 0u) << r;
 }
 
+// The catching-up tests' cost model, and client `client`'s sample of `base`
+// work with everything but the region's pixels times `more`, timed by it.
+const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
+CostSample timedSample(int client, double more, CostSample base) {
+  base.client = client;
+  base.drawn *= more;
+  base.triangles *= more;
+  base.tested *= more;
+  base.fill *= more;
+  base.ms = predictMs(kTruth, base);
+  return base;
+}
+
 // Catching up: a client whose region held more work, every frame, than the
 // others' (its time explained by the fitted model, so its speed stays 1) runs
 // into debt and gets a smaller share of the next frames; off, shares are the
@@ -291,20 +304,16 @@ TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
   Rng rng(37);
   Scene scene = gridScene(rng, 4, 4);
   FramePlanner planner(scene);
-  const CostModel truth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
   for (int frame = 0; frame < 12; ++frame) {
     std::vector<CostSample> samples;
     for (int k = 0; k < 3; ++k) {
-      double more = k == 0 ? 2.0 : 1.0;  // client 0's region holds twice the work
       CostSample s;
-      s.client = k;
-      s.drawn = more * rng.real(50, 150);
-      s.triangles = more * rng.real(1e4, 5e4);
-      s.tested = more * rng.real(200, 900);
+      s.drawn = rng.real(50, 150);
+      s.triangles = rng.real(1e4, 5e4);
+      s.tested = rng.real(200, 900);
       s.pixels = rng.real(1e5, 3e5);
-      s.fill = more * rng.real(1e5, 6e5);
-      s.ms = predictMs(truth, s);
-      samples.push_back(s);
+      s.fill = rng.real(1e5, 6e5);
+      samples.push_back(timedSample(k, k == 0 ? 2.0 : 1.0, s));  // client 0: twice the work
     }
     planner.reportCosts(uint32_t(frame), samples);
   }
@@ -328,21 +337,17 @@ TEST(FramePlanner, FramesInFlightPayPartOfTheDebt) {
   Rng rng(38);
   Scene scene = gridScene(rng, 4, 4);
   FramePlanner planner(scene);
-  const CostModel truth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
   for (int frame = 0; frame < 12; ++frame) {
     std::vector<CostSample> samples;
     for (int k = 0; k < 3; ++k) {
-      // The same work for all, but client 0 has a quarter more in the last frame.
-      double more = k == 0 && frame == 11 ? 1.25 : 1.0;
       CostSample s;
-      s.client = k;
-      s.drawn = more * (50 + 10 * frame);
-      s.triangles = more * (1e4 + 3e3 * frame);
-      s.tested = more * (200 + 50 * (frame % 5));
+      s.drawn = 50 + 10 * frame;
+      s.triangles = 1e4 + 3e3 * frame;
+      s.tested = 200 + 50 * (frame % 5);
       s.pixels = 1e5 + 1e4 * (frame % 3);
-      s.fill = more * (1e5 + 4e4 * (frame % 4));
-      s.ms = predictMs(truth, s);
-      samples.push_back(s);
+      s.fill = 1e5 + 4e4 * (frame % 4);
+      // The same work for all, but client 0 has a quarter more in the last frame.
+      samples.push_back(timedSample(k, k == 0 && frame == 11 ? 1.25 : 1.0, s));
     }
     planner.reportCosts(uint32_t(frame), samples);
   }
