@@ -28,6 +28,8 @@ layout(location = 3) in vec2 a_uv;
 uniform mat4 u_mv;
 uniform mat4 u_proj;
 uniform mat3 u_nrm;
+uniform int u_slot;
+flat out int v_slot;
 out vec3 v_eye;
 out vec3 v_nrm;
 out vec4 v_col;
@@ -38,28 +40,37 @@ void main() {
   v_nrm = u_nrm * a_nrm;
   v_col = a_col;
   v_uv = a_uv;
+  v_slot = u_slot;
   gl_Position = u_proj * e;
 }
 )";
 
-// The entry-depth planes of the object's box (camera.h, entryDepthPlanes, set
-// by Renderer::setDepthBound) reach the fragment shader as BOUND: a fragment
-// shader uniform in the shading program, a flat varying from a vertex shader
-// uniform in the position-only program (kBoxVertexShader), which passes the
-// same floats bit for bit. On llvmpipe a fragment shader uniform changed
-// between draws costs about 16 us of CPU a draw call, a vertex shader one
-// about 1 us (`hot_bench depth`), which matters for the depth passes' many
-// small occluders; in the shading program the flat varyings cost more per
-// triangle and fragment than they saved (15-25% more client CPU on
+// The entry-depth planes of the object's box (camera.h, entryDepthPlanes)
+// reach the fragment shader as BOUND(i), the same floats bit for bit either
+// way: in the shading program from the draw's slot (Renderer::DrawSlot, a
+// texel buffer read through a slot index that a vertex shader uniform
+// passes on flat, with the submesh's colour), in the position-only program
+// (kBoxVertexShader) as a flat varying from a vertex shader uniform. Not a
+// fragment shader uniform: on llvmpipe changing one between draws copies
+// the whole rasteriser state, about 13 us of CPU a draw call against about
+// 1 us for a vertex shader uniform (`hot_bench shade`, `hot_bench depth`).
+// Not flat varyings in the shading program either: the planes and colour
+// cost more per triangle there than they saved (15-25% more client CPU on
 // monument4m and skulls25; docs/benchmarks.md, "The depth bound as a flat
-// varying"). Each holds the #version line.
-const char* kBoundUniform = R"(#version 450 core
-uniform vec3 u_bound[3];
-#define BOUND u_bound
+// varying"). An SSBO instead of the texel buffer costs llvmpipe a scalar
+// loop per fragment, and a UBO is copied when bound, not read at
+// rasterisation ("Per-draw values in a texel buffer"). Each holds the
+// #version line.
+const char* kBoundSlot = R"(#version 450 core
+flat in int v_slot;
+uniform samplerBuffer u_slots;
+#define BOUND(i) texelFetch(u_slots, 4 * v_slot + (i)).xyz
+#define DIFFUSE texelFetch(u_slots, 4 * v_slot + 3)
+#define HAS_TEXTURE (texelFetch(u_slots, 4 * v_slot).w != 0.0)
 )";
 const char* kBoundFlat = R"(#version 450 core
 flat in vec3 v_bound[3];
-#define BOUND v_bound
+#define BOUND(i) v_bound[i]
 )";
 
 // Fragment depth from the entry-depth planes: where the ray through the
@@ -69,7 +80,7 @@ const char* kDepthPlanes = R"(
 uniform vec2 u_ndc_scale;
 float entryDepth() {
   vec3 p = vec3(gl_FragCoord.xy * u_ndc_scale - 1.0, 1.0);
-  precise float d = min(min(dot(BOUND[0], p), dot(BOUND[1], p)), dot(BOUND[2], p));
+  precise float d = min(min(dot(BOUND(0), p), dot(BOUND(1), p)), dot(BOUND(2), p));
   return d;
 }
 )";
@@ -98,8 +109,6 @@ bool outsideBound() {
 // Two-sided headlight shading. Without normals, the facet normal comes from
 // screen-space derivatives of the eye position (flat shading).
 const char* kFragmentShader = R"(
-uniform vec4 u_diffuse;
-uniform int u_has_texture;
 uniform sampler2D u_tex;
 in vec3 v_eye;
 in vec3 v_nrm;
@@ -114,8 +123,8 @@ void main() {
   float le = length(v_eye);
   vec3 v = le > 0.0 ? -v_eye / le : vec3(0.0, 0.0, 1.0);
   float lambert = abs(dot(n, v));
-  vec4 base = u_diffuse * v_col;
-  if (u_has_texture != 0) base *= texture(u_tex, v_uv);
+  vec4 base = DIFFUSE * v_col;
+  if (HAS_TEXTURE) base *= texture(u_tex, v_uv);
   o_color = vec4(base.rgb * (0.3 + 0.7 * lambert), 1.0);
   // Last: the derivatives above (and the texture's) need the whole quad.
   if (outsideBound()) discard;
@@ -215,12 +224,11 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   if (gl_.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw Error("the frame's framebuffer is incomplete");
 
-  program_ =
-      link(gl_, kVertexShader, {kBoundUniform, kDepthPlanes, kBoundedDepth, kFragmentShader});
+  program_ = link(gl_, kVertexShader, {kBoundSlot, kDepthPlanes, kBoundedDepth, kFragmentShader});
   box_program_ = link(gl_, kBoxVertexShader, {kBoxFragmentShader});
   id_program_ =
       link(gl_, kBoxVertexShader, {kBoundFlat, kDepthPlanes, kBoundedDepth, kIdFragmentShader});
-  u_bound_ = gl_.GetUniformLocation(program_, "u_bound");
+  u_slot_ = gl_.GetUniformLocation(program_, "u_slot");
   u_id_bound_ = gl_.GetUniformLocation(id_program_, "u_bound");
   for (GLuint p : {program_, id_program_}) {
     gl_.UseProgram(p);
@@ -258,10 +266,22 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   u_mv_ = gl_.GetUniformLocation(program_, "u_mv");
   u_proj_ = gl_.GetUniformLocation(program_, "u_proj");
   u_nrm_ = gl_.GetUniformLocation(program_, "u_nrm");
-  u_diffuse_ = gl_.GetUniformLocation(program_, "u_diffuse");
-  u_has_texture_ = gl_.GetUniformLocation(program_, "u_has_texture");
   u_tex_ = gl_.GetUniformLocation(program_, "u_tex");
 
+  gl_.GenBuffers(1, &slot_buffer_);
+  gl_.BindBuffer(GL_TEXTURE_BUFFER, slot_buffer_);
+  const GLbitfield map = GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  gl_.BufferStorage(GL_TEXTURE_BUFFER, GLsizeiptr(kDrawSlots * sizeof(DrawSlot)), nullptr, map);
+  slots_ = static_cast<DrawSlot*>(
+      gl_.MapBufferRange(GL_TEXTURE_BUFFER, 0, GLsizeiptr(kDrawSlots * sizeof(DrawSlot)), map));
+  if (!slots_) throw Error("could not map the draw slots' buffer");
+  gl_.GenTextures(1, &slot_texture_);
+  gl_.ActiveTexture(GL_TEXTURE0 + kSlotUnit);
+  gl_.BindTexture(GL_TEXTURE_BUFFER, slot_texture_);
+  gl_.TexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, slot_buffer_);
+  gl_.ActiveTexture(GL_TEXTURE0);
+  gl_.UseProgram(program_);
+  gl_.Uniform1i(gl_.GetUniformLocation(program_, "u_slots"), kSlotUnit);
   gl_.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   gl_.Enable(GL_DEPTH_TEST);
   gl_.DepthFunc(GL_GREATER);
@@ -273,6 +293,10 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
 }
 
 Renderer::~Renderer() {
+  gl_.DeleteTextures(1, &slot_texture_);
+  gl_.BindBuffer(GL_TEXTURE_BUFFER, slot_buffer_);
+  gl_.UnmapBuffer(GL_TEXTURE_BUFFER);
+  gl_.DeleteBuffers(1, &slot_buffer_);
   gl_.DeleteProgram(program_);
   gl_.DeleteProgram(box_program_);
   gl_.DeleteProgram(id_program_);
@@ -376,6 +400,10 @@ void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
   gl_.VertexAttrib4f(1, 0.f, 0.f, 0.f, 0.f);  // used when a mesh has no normals
   gl_.VertexAttrib4f(2, 1.f, 1.f, 1.f, 1.f);  // ... no colours
   gl_.VertexAttrib4f(3, 0.f, 0.f, 0.f, 1.f);  // ... no texture coordinates
+  // Bound per frame, as another Renderer may share the context.
+  gl_.ActiveTexture(GL_TEXTURE0 + kSlotUnit);
+  gl_.BindTexture(GL_TEXTURE_BUFFER, slot_texture_);
+  gl_.ActiveTexture(GL_TEXTURE0);
 }
 
 void Renderer::beginDepthFrame(const Camera& camera, const Rect& region) {
@@ -425,13 +453,25 @@ Box3d depthBoundBox(const Box3d& box, const Camera& camera, int height) {
   return widened(box, camera, height, 0.5);
 }
 
-void Renderer::setDepthBound(GLint location, const Box3d& box) {
-  float k[9] = {0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound), 0, 0, float(kNoDepthBound)};
+void Renderer::depthBoundPlanes(const Box3d& box, float k[9]) const {
+  for (int i = 0; i < 9; ++i) k[i] = i % 3 == 2 ? float(kNoDepthBound) : 0.f;
   if (box.valid()) {
     EntryDepthPlanes p = entryDepthPlanes(box, camera_);
     for (int i = 0; i < 9; ++i) k[i] = float(p.k[size_t(i / 3)][size_t(i % 3)]);
   }
+}
+
+void Renderer::setDepthBound(GLint location, const Box3d& box) {
+  float k[9];
+  depthBoundPlanes(box, k);
   gl_.Uniform3fv(location, 3, k);
+}
+
+GLint Renderer::nextSlot() {
+  // A slot is written once the draws that read the ring's earlier use of it
+  // are done: the ring starts over only after a wait (waited()).
+  if (next_slot_ == kDrawSlots) finish();
+  return GLint(next_slot_++);
 }
 
 void Renderer::queryBox(const Box3d& box, GLuint query, GLenum target) {
@@ -609,14 +649,22 @@ uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const
       for (int r = 0; r < 3; ++r) nrm[c * 3 + r] = float(inv.at(c, r));
   gl_.UniformMatrix4fv(u_mv_, 1, GL_FALSE, mvf);
   gl_.UniformMatrix3fv(u_nrm_, 1, GL_FALSE, nrm);
-  setDepthBound(u_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
+  float planes[9];
+  depthBoundPlanes(bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds, planes);
   gl_.BindVertexArray(mesh.vao);
   uint64_t indices = 0;
   for (size_t i = 0; i < mesh.submeshes.size(); ++i) {
     const SubMesh& s = mesh.submeshes[i];
     bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();
-    gl_.Uniform4fv(u_diffuse_, 1, s.diffuse);
-    gl_.Uniform1i(u_has_texture_, tex ? 1 : 0);
+    GLint slot = nextSlot();
+    DrawSlot& d = slots_[slot];
+    for (int k = 0; k < 3; ++k) {
+      std::memcpy(d.v[k], planes + 3 * k, 3 * sizeof(float));
+      d.v[k][3] = 0.f;
+    }
+    d.v[0][3] = tex ? 1.f : 0.f;
+    std::memcpy(d.v[3], s.diffuse, sizeof d.v[3]);
+    gl_.Uniform1i(u_slot_, slot);
     if (tex) {
       gl_.ActiveTexture(GL_TEXTURE0);
       gl_.BindTexture(GL_TEXTURE_2D, textures[size_t(s.texture)]);
@@ -632,7 +680,7 @@ void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
   rgba->resize(size_t(region.area()) * 4);
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
   gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_RGBA, GL_UNSIGNED_BYTE, rgba->data());
-  drained();
+  waited();
   gl_.check("readPixels");
 }
 
@@ -641,7 +689,7 @@ void Renderer::readDepth(const Rect& region, std::vector<float>* depth) {
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
   gl_.ReadPixels(region.x, region.y, region.w, region.h, GL_DEPTH_COMPONENT, GL_FLOAT,
                  depth->data());
-  drained();
+  waited();
   gl_.check("readDepth");
 }
 
@@ -709,7 +757,7 @@ void Renderer::submitted(uint64_t indices) {
 
 void Renderer::finish() {
   gl_.Finish();
-  drained();
+  waited();
 }
 
 }  // namespace dmmr

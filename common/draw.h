@@ -189,6 +189,11 @@ class Renderer {
   uint64_t flushEvery() const { return flush_every_; }
   uint64_t flushes() const { return flushes_; }  // setFlushEvery's, since construction
 
+  // draw() calls (one a submesh) a frame takes before it waits for the
+  // draws in flight (a glFinish) to reuse their per-draw slots; a readback
+  // or finish() frees them all.
+  static constexpr size_t kDrawSlots = 16384;
+
  private:
   const GlApi& gl_;
   int width_, height_;
@@ -199,16 +204,37 @@ class Renderer {
   GLint u_box_mv_ = -1, u_box_proj_ = -1;
   GLuint id_program_ = 0;
   GLint u_id_mv_ = -1, u_id_proj_ = -1, u_id_color_ = -1;
-  GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_diffuse_ = -1, u_has_texture_ = -1, u_tex_ = -1;
+  GLint u_mv_ = -1, u_proj_ = -1, u_nrm_ = -1, u_tex_ = -1, u_slot_ = -1;
   Camera camera_;
   Mat4d view_rotation_;
-  GLint u_bound_ = -1, u_id_bound_ = -1;
+  GLint u_id_bound_ = -1;
+  // The shading program's per-draw values, one slot a draw call, in a
+  // persistently mapped ring that the fragment shader reads as a texel
+  // buffer (texture unit kSlotUnit) at the slot a vertex shader uniform
+  // passes on flat. On llvmpipe, changing a fragment shader uniform between
+  // draws copies its whole rasteriser state (33 kB, mostly texture slots)
+  // into the scene, about 13 us of CPU a draw call (`hot_bench shade`);
+  // writing a slot and changing a vertex shader uniform costs about 1 us.
+  struct DrawSlot {
+    float v[4][4];  // entry-depth planes (xyz; v[0][3]: textured), diffuse
+  };
+  static constexpr int kSlotUnit = 1;
+  GLuint slot_buffer_ = 0, slot_texture_ = 0;
+  DrawSlot* slots_ = nullptr;  // persistently mapped
+  size_t next_slot_ = 0;
   uint64_t unflushed_ = 0, flush_every_ = 0, next_flush_ = 0, flushes_ = 0;
   // A wait drained llvmpipe: the next flush comes after flush_every_ again.
   void drained() {
     unflushed_ = 0;
     next_flush_ = flush_every_;
   }
+  // Every draw so far is done (finish, a readback): the slots are free.
+  void waited() {
+    drained();
+    next_slot_ = 0;
+  }
+  // The next free draw slot; waits for the draws in flight when none is.
+  GLint nextSlot();
   // Counts a draw call's triangles and flushes when flush_every_ are due.
   void submitted(uint64_t indices);
   // Draws `count` indices from `first` of the bound VAO (submitted() too);
@@ -222,6 +248,9 @@ class Renderer {
   // Uploads `box`'s entry-depth planes for the current camera (an invalid
   // box: no bound) to the current program's u_bound.
   void setDepthBound(GLint location, const Box3d& box);
+  // `box`'s entry-depth planes for the current camera, 3 by 3 (an invalid
+  // box: no bound).
+  void depthBoundPlanes(const Box3d& box, float k[9]) const;
 };
 
 }  // namespace dmmr

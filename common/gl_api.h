@@ -68,6 +68,10 @@ namespace dmmr {
   X(void, DeleteBuffers, (GLsizei, const GLuint*))                                       \
   X(void, BindBuffer, (GLenum, GLuint))                                                  \
   X(void, BufferData, (GLenum, GLsizeiptr, const void*, GLenum))                         \
+  X(void, BufferStorage, (GLenum, GLsizeiptr, const void*, GLbitfield))                  \
+  X(void*, MapBufferRange, (GLenum, GLintptr, GLsizeiptr, GLbitfield))                   \
+  X(GLboolean, UnmapBuffer, (GLenum))                                                    \
+  X(void, TexBuffer, (GLenum, GLenum, GLuint))                                           \
   X(void, VertexAttribPointer, (GLuint, GLint, GLenum, GLboolean, GLsizei, const void*)) \
   X(void, EnableVertexAttribArray, (GLuint))                                             \
   X(void, DisableVertexAttribArray, (GLuint))                                            \

@@ -9,6 +9,8 @@
 //                                glReadPixels(GL_RGB)
 //   hot_bench depth [N]          a depth pass of N small occluders
 //                                (Renderer::drawDepth), llvmpipe (OSMesa)
+//   hot_bench shade [N]          a shading pass of N small objects, each its
+//                                own colour (Renderer::draw), llvmpipe
 //
 // Times are CPU seconds of the process (llvmpipe's threads included) unless
 // the column says wall; run it on an otherwise quiet machine, or compare
@@ -166,21 +168,17 @@ int readback(int w, int h) {
   return 0;
 }
 
-int depth(int count) {
-  const int size = 512;
-  auto ctx = createContext({Backend::OSMesa, -1});
-  Renderer r(ctx->gl(), size, size);
-  Camera cam;
-  cam.eye = {0, 0, 0};
-  cam.fovy_deg = 60;
-  cam.near = 0.1;
-  // Small quads (two triangles, a few pixels each) spread over the view:
-  // the per-object cost, not the fill, is what the pass pays for.
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-1, 1);
+// N small quads (two triangles, a few pixels each) spread over the view:
+// the per-object cost, not the fill, is what a pass of them pays for.
+struct Quads {
   std::vector<GpuMesh> meshes;
   std::vector<Box3d> boxes;
   std::vector<Mat4d> transforms;
+};
+Quads smallQuads(Renderer& r, int count) {
+  Quads q;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
   for (int i = 0; i < count; ++i) {
     double z = -5 - 5 * (u(rng) + 1), x = u(rng) * 2, y = u(rng) * 2, s = 0.02;
     GeometryData g;
@@ -189,25 +187,63 @@ int depth(int count) {
     g.indices = {0, 1, 2, 0, 2, 3};
     SubMesh sm;
     sm.index_count = 6;
+    float shade = float(i % 7) / 7.f;
+    sm.diffuse[0] = shade;
     g.submeshes = {sm};
-    meshes.push_back(r.upload(g));
+    q.meshes.push_back(r.upload(g));
     Box3d b;
     b.expand(Vec3d{x - s, y - s, z});
     b.expand(Vec3d{x + s, y + s, z});
-    boxes.push_back(b);
-    transforms.push_back(Mat4d::identity());
+    q.boxes.push_back(b);
+    q.transforms.push_back(Mat4d::identity());
   }
+  return q;
+}
+
+// A shading pass (Renderer::draw) of N small quads, each its own colour.
+int shade(int count) {
+  const int size = 512;
+  auto ctx = createContext({Backend::OSMesa, -1});
+  Renderer r(ctx->gl(), size, size);
+  Camera cam;
+  cam.eye = {0, 0, 0};
+  cam.fovy_deg = 60;
+  cam.near = 0.1;
+  Quads q = smallQuads(r, count);
+  Rect region{0, 0, size, size};
+  Timing t = time(15, 10, [&] {
+    r.beginFrame(cam, region);
+    for (int i = 0; i < count; ++i)
+      r.draw(q.meshes[size_t(i)], q.transforms[size_t(i)], q.boxes[size_t(i)], {});
+    r.finish();
+  });
+  ctx->gl().check("shade bench");
+  std::printf("shading pass of %d objects at %dx%d: %.3f ms CPU, %.3f ms wall (%.2f us CPU each)\n",
+              count, size, size, t.cpu_ms, t.wall_ms, t.cpu_ms * 1e3 / count);
+  for (GpuMesh& m : q.meshes) r.release(m);
+  return 0;
+}
+
+int depth(int count) {
+  const int size = 512;
+  auto ctx = createContext({Backend::OSMesa, -1});
+  Renderer r(ctx->gl(), size, size);
+  Camera cam;
+  cam.eye = {0, 0, 0};
+  cam.fovy_deg = 60;
+  cam.near = 0.1;
+  Quads q = smallQuads(r, count);
   Rect region{0, 0, size, size};
   Timing t = time(15, 10, [&] {
     r.beginDepthFrame(cam, region);
     for (int i = 0; i < count; ++i)
-      r.drawDepth(meshes[size_t(i)], transforms[size_t(i)], boxes[size_t(i)], false);
+      r.drawDepth(q.meshes[size_t(i)], q.transforms[size_t(i)], q.boxes[size_t(i)], false);
     r.finish();
   });
   ctx->gl().check("depth bench");
   std::printf("depth pass of %d occluders at %dx%d: %.3f ms CPU, %.3f ms wall (%.2f us CPU each)\n",
               count, size, size, t.cpu_ms, t.wall_ms, t.cpu_ms * 1e3 / count);
-  for (GpuMesh& m : meshes) r.release(m);
+  for (GpuMesh& m : q.meshes) r.release(m);
   return 0;
 }
 
@@ -219,6 +255,7 @@ int main(int argc, char** argv) {
   if (what == "readback")
     return readback(argc > 3 ? std::atoi(argv[2]) : 512, argc > 3 ? std::atoi(argv[3]) : 512);
   if (what == "depth") return depth(argc > 2 ? std::atoi(argv[2]) : 2000);
-  std::fprintf(stderr, "usage: hot_bench merge | readback [W H] | depth [N]\n");
+  if (what == "shade") return shade(argc > 2 ? std::atoi(argv[2]) : 2000);
+  std::fprintf(stderr, "usage: hot_bench merge | readback [W H] | depth [N] | shade [N]\n");
   return 2;
 }

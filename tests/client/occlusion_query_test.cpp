@@ -324,6 +324,53 @@ TEST_F(OcclusionQuery, FragmentsInFrontOfTheirDepthBoundAreDroppedNotClamped) {
   gl.check("depth bound test");
 }
 
+// The shading program reads each draw's colour and depth bound from a ring
+// of Renderer::kDrawSlots slots; a frame with more draws than that waits
+// for the draws in flight before it reuses a slot. Without the wait, the
+// first draws would be rasterised with what later ones wrote over their
+// slots. 64 spots, each its own colour and box, then the filler drawn past
+// the ring's end; the frame must equal one that waits every 1000 draws.
+TEST_F(OcclusionQuery, MoreDrawsThanDrawSlotsKeepEachDrawsColourAndBound) {
+  Renderer& r = *renderer_;
+  std::vector<Box3d> boxes;
+  for (int k = 0; k < 64; ++k) {  // 2-pixel squares on an 8x8 grid, lower half
+    double x = -1 + (k % 8) * 0.25, y = -1 + (k / 8) * 0.125;
+    GeometryData g = quad(x, x + 0.0625, y, y + 0.0625, -1, float(k + 1) / 65.f);
+    meshes_.push_back(r.upload(g));
+    boxes.push_back(positionBox(g));
+  }
+  GeometryData filler = quad(-1, 1, 0.25, 0.75, -1, 0.5f);
+  meshes_.push_back(r.upload(filler));
+  boxes.push_back(positionBox(filler));
+  const Rect frame{0, 0, kSize, kSize};
+  auto render = [&](size_t wait_every) {
+    r.beginFrame(camera_, frame);
+    size_t draws = 0;
+    auto drawOne = [&](size_t i) {
+      r.draw(meshes_[i], Mat4d::identity(), boxes[i], {});
+      if (wait_every && ++draws % wait_every == 0) r.finish();
+    };
+    for (size_t i = 0; i < 64; ++i) drawOne(i);
+    for (size_t i = 0; i < Renderer::kDrawSlots; ++i) drawOne(64);
+    std::vector<uint8_t> px;
+    r.readPixels(frame, &px);
+    return px;
+  };
+  std::vector<uint8_t> waiting = render(1000), ring = render(0);
+  // The spots' pixels (one inside each) are of many reds (the headlight's
+  // falloff makes a few of the 64 coincide): a spot that read the filler's
+  // slot would show the filler's.
+  std::vector<uint8_t> reds;
+  for (int k = 0; k < 64; ++k) {
+    int px = (k % 8) * 8 + 1, py = (k / 8) * 4 + 1;
+    reds.push_back(waiting[size_t(py * kSize + px) * 4]);
+  }
+  std::sort(reds.begin(), reds.end());
+  EXPECT_GE(std::unique(reds.begin(), reds.end()) - reds.begin(), 48);
+  EXPECT_TRUE(ring == waiting) << "a draw read another draw's slot";
+  ctx_->gl().check("draw slots test");
+}
+
 // The depth-pyramid test's contract on the real rasteriser: every pixel an
 // object writes lies in its query box's screen bound and no nearer than the
 // bound's depth there (depth_pyramid.h). Random triangles inside random
