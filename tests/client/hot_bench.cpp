@@ -9,8 +9,11 @@
 //                                glReadPixels(GL_RGB)
 //   hot_bench depth [N]          a depth pass of N small occluders
 //                                (Renderer::drawDepth), llvmpipe (OSMesa)
-//   hot_bench shade [N]          a shading pass of N small objects, each its
+//   hot_bench shade [N [HALF]]   a shading pass of N objects (quads of half
+//                                size HALF, default 0.02, at 5-15 m), each its
 //                                own colour (Renderer::draw), llvmpipe
+//   hot_bench frame [W H]        a client's fixed steps a frame (clear,
+//                                readbacks) for a region of 1/16 of W x H
 //
 // Times are CPU seconds of the process (llvmpipe's threads included) unless
 // the column says wall; run it on an otherwise quiet machine, or compare
@@ -168,19 +171,20 @@ int readback(int w, int h) {
   return 0;
 }
 
-// N small quads (two triangles, a few pixels each) spread over the view:
-// the per-object cost, not the fill, is what a pass of them pays for.
+// N quads (two triangles; at the default half size of 2 cm, a few pixels
+// each) spread over the view: small, the per-object cost, not the fill, is
+// what a pass of them pays for.
 struct Quads {
   std::vector<GpuMesh> meshes;
   std::vector<Box3d> boxes;
   std::vector<Mat4d> transforms;
 };
-Quads smallQuads(Renderer& r, int count) {
+Quads smallQuads(Renderer& r, int count, double s = 0.02) {
   Quads q;
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1, 1);
   for (int i = 0; i < count; ++i) {
-    double z = -5 - 5 * (u(rng) + 1), x = u(rng) * 2, y = u(rng) * 2, s = 0.02;
+    double z = -5 - 5 * (u(rng) + 1), x = u(rng) * 2, y = u(rng) * 2;
     GeometryData g;
     g.positions = {float(x - s), float(y - s), float(z), float(x + s), float(y - s), float(z),
                    float(x + s), float(y + s), float(z), float(x - s), float(y + s), float(z)};
@@ -200,8 +204,9 @@ Quads smallQuads(Renderer& r, int count) {
   return q;
 }
 
-// A shading pass (Renderer::draw) of N small quads, each its own colour.
-int shade(int count) {
+// A shading pass (Renderer::draw) of N quads of half size `half` (metres,
+// at 5 to 15 m), each its own colour.
+int shade(int count, double half) {
   const int size = 512;
   auto ctx = createContext({Backend::OSMesa, -1});
   Renderer r(ctx->gl(), size, size);
@@ -209,7 +214,7 @@ int shade(int count) {
   cam.eye = {0, 0, 0};
   cam.fovy_deg = 60;
   cam.near = 0.1;
-  Quads q = smallQuads(r, count);
+  Quads q = smallQuads(r, count, half);
   Rect region{0, 0, size, size};
   Timing t = time(15, 10, [&] {
     r.beginFrame(cam, region);
@@ -218,9 +223,58 @@ int shade(int count) {
     r.finish();
   });
   ctx->gl().check("shade bench");
-  std::printf("shading pass of %d objects at %dx%d: %.3f ms CPU, %.3f ms wall (%.2f us CPU each)\n",
-              count, size, size, t.cpu_ms, t.wall_ms, t.cpu_ms * 1e3 / count);
+  std::printf(
+      "shading pass of %d objects (half size %.3f m) at %dx%d: %.3f ms CPU, %.3f ms wall "
+      "(%.2f us CPU each)\n",
+      count, half, size, size, t.cpu_ms, t.wall_ms, t.cpu_ms * 1e3 / count);
   for (GpuMesh& m : q.meshes) r.release(m);
+  return 0;
+}
+
+// One client's fixed cost a frame at W x H with a region of a sixteenth of
+// the frame: clear, one draw, depth and colour readbacks, each step timed.
+int frame(int w, int h) {
+  auto ctx = createContext({Backend::OSMesa, -1});
+  Renderer r(ctx->gl(), w, h);
+  Camera cam;
+  cam.eye = {0, 0, 0};
+  cam.fovy_deg = 60;
+  cam.near = 0.1;
+  cam.aspect = double(w) / h;
+  Quads q = smallQuads(r, 1);
+  Rect region{w / 4, h / 4, w / 4, h / 4};
+  std::vector<uint8_t> rgba;
+  std::vector<float> depth;
+  auto step = [&](const char* what, const std::function<void()>& f) {
+    Timing t = time(15, 20, f);
+    std::printf("  %-44s %7.3f ms CPU %7.3f ms wall\n", what, t.cpu_ms, t.wall_ms);
+  };
+  std::printf("frame steps at %dx%d, region %dx%d:\n", w, h, region.w, region.h);
+  step("beginFrame + finish", [&] {
+    r.beginFrame(cam, region);
+    r.finish();
+  });
+  step("beginFrame + one small draw + finish", [&] {
+    r.beginFrame(cam, region);
+    r.draw(q.meshes[0], q.transforms[0], q.boxes[0], {});
+    r.finish();
+  });
+  step("beginFrame + readDepth(region)", [&] {
+    r.beginFrame(cam, region);
+    r.readDepth(region, &depth);
+  });
+  step("beginFrame + readPixels(region)", [&] {
+    r.beginFrame(cam, region);
+    r.readPixels(region, &rgba);
+  });
+  step("beginFrame + draw + readDepth + draw + readPixels", [&] {
+    r.beginFrame(cam, region);
+    r.draw(q.meshes[0], q.transforms[0], q.boxes[0], {});
+    r.readDepth(region, &depth);
+    r.draw(q.meshes[0], q.transforms[0], q.boxes[0], {});
+    r.readPixels(region, &rgba);
+  });
+  r.release(q.meshes[0]);
   return 0;
 }
 
@@ -255,7 +309,12 @@ int main(int argc, char** argv) {
   if (what == "readback")
     return readback(argc > 3 ? std::atoi(argv[2]) : 512, argc > 3 ? std::atoi(argv[3]) : 512);
   if (what == "depth") return depth(argc > 2 ? std::atoi(argv[2]) : 2000);
-  if (what == "shade") return shade(argc > 2 ? std::atoi(argv[2]) : 2000);
-  std::fprintf(stderr, "usage: hot_bench merge | readback [W H] | depth [N] | shade [N]\n");
+  if (what == "shade")
+    return shade(argc > 2 ? std::atoi(argv[2]) : 2000, argc > 3 ? std::atof(argv[3]) : 0.02);
+  if (what == "frame")
+    return frame(argc > 3 ? std::atoi(argv[2]) : 1024, argc > 3 ? std::atoi(argv[3]) : 768);
+  std::fprintf(
+      stderr,
+      "usage: hot_bench merge | readback [W H] | depth [N] | shade [N [HALF]] | frame [W H]\n");
   return 2;
 }
