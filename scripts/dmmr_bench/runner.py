@@ -6,6 +6,8 @@ import sys
 import time
 from pathlib import Path
 
+from .analysis import run_labels
+
 
 OSG_TOOL = "dmmr-osgviewer"
 OSG_LABEL = "osg-occlusion"  # the OpenSceneGraph baseline's run, one per scene
@@ -57,7 +59,7 @@ def run_cmd(cmd, log, env=None):
 
 class Runner:
     def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=(),
-                 cost="wall"):
+                 cost="wall", repeats=1):
         self.suite, self.scale, self.out, self.bin = suite, scale, Path(out), Path(bin_dir)
         self.backend, self.resume = backend, resume
         # extra dmmr-render options of the plain runs (not the threshold sweep), e.g. --stages fused
@@ -90,6 +92,9 @@ class Runner:
                 self.render_mpi += ["-x", "LP_NUM_THREADS"]
         self.render_extra = ["--stage-turns", str(self.out / "stage-turns.lock")] if cost == "turns" else []
         self.timings = {}  # label -> wall seconds
+        # each dmmr-render configuration run this many times (run_labels); the
+        # report takes the run of median cost (analysis.median_run)
+        self.repeats = max(1, int(repeats))
         self.osg = self.osg_settings()  # checked before any run
         # the OpenSceneGraph baseline: on unless the scale (else the suite's
         # [run]) says osg_baseline = false; a scaling suite uses none of its
@@ -112,12 +117,15 @@ class Runner:
                           ["--visibility", "queries", "--stages", "split", "--query-threshold", str(t)]))
         return confs
 
+    def run_labels(self, label):
+        return run_labels(label, self.repeats)
+
     def scenes(self):
         return self.cfg["scenes"]
 
     def total_steps(self):
         # generate, preprocess, reference, OSG baseline, (render, compare)*
-        per_scene = 2 + 1 + int(self.osg_baseline) + 2 * len(self.configurations())
+        per_scene = 2 + 1 + int(self.osg_baseline) + 2 * self.repeats * len(self.configurations())
         return per_scene * len(self.scenes())
 
     # --- scenes -----------------------------------------------------------
@@ -242,7 +250,8 @@ class Runner:
             progress.step(f"{name}: dmmr-reference reused")
         else:
             # a new reference (or one of another stride): every run is compared with it again
-            self._fresh(ref_dir, ref_csv, *(rd / f"{label}.cmp.csv" for label, _, _ in self.configurations()))
+            self._fresh(ref_dir, ref_csv, *(rd / f"{rl}.cmp.csv" for label, _, _ in self.configurations()
+                                            for rl in self.run_labels(label)))
             dt = run_cmd([self.bin / "dmmr-reference", *self.common_opts(scene_dir, ref_path, ref_dir, ref_csv)],
                          self.log, env=self.env)
             self.timings[f"{name}/reference"] = dt
@@ -258,26 +267,32 @@ class Runner:
             self.timings[f"{name}/{OSG_LABEL}"] = dt
             progress.step(f"{name}: {OSG_TOOL} (osgViewer + OcclusionQueryNode, original model) in {dt:.1f} s")
         for label, n, extra in self.configurations():
-            out_dir, csv = rd / label, rd / f"{label}.csv"
-            cmp_csv = rd / f"{label}.cmp.csv"
-            if self.resume and csv.exists() and out_dir.is_dir():
-                progress.step(f"{name}: {label} reused")
-                if cmp_csv.exists():
-                    progress.step(f"{name}: {label} comparison reused")
-                else:  # e.g. the reference was rerun on more frames: compare the frames kept
-                    self.compare(ref_dir, out_dir, stride, cmp_csv)
-                    progress.step(f"{name}: {label} compared with the reference")
-                continue
-            self._fresh(out_dir, csv, cmp_csv)
-            cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
-                   *self.common_opts(scene_dir, path, out_dir, csv),
-                   "--compress", self.run_cfg.get("compress", "lz4"),
-                   "--client-timeout", self.run_cfg.get("client_timeout", 600), *self.render_extra, *extra]
-            dt = run_cmd(cmd, self.log, env=self.render_env)
-            self.timings[f"{name}/{label}"] = dt
-            progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
-                          f"{' ' + ' '.join(extra) if extra else ''} in {dt:.1f} s")
-            self.compare(ref_dir, out_dir, stride, cmp_csv)
-            progress.step(f"{name}: {label} compared with the reference")
+            for run_label in self.run_labels(label):
+                self.run_render(rd, name, run_label, n, extra, scene_dir, path, ref_dir, stride, progress)
         return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd), "reference_stride": stride,
                 "osg_csv": str(osg_csv) if osg_csv else None}
+
+    def run_render(self, rd, name, label, n, extra, scene_dir, path, ref_dir, stride, progress):
+        """One dmmr-render run of `n` clients into rd/label, compared with the reference."""
+        out_dir, csv = rd / label, rd / f"{label}.csv"
+        cmp_csv = rd / f"{label}.cmp.csv"
+        if self.resume and csv.exists() and out_dir.is_dir():
+            progress.step(f"{name}: {label} reused")
+            if cmp_csv.exists():
+                progress.step(f"{name}: {label} comparison reused")
+            else:  # e.g. the reference was rerun on more frames: compare the frames kept
+                self.compare(ref_dir, out_dir, stride, cmp_csv)
+                progress.step(f"{name}: {label} compared with the reference")
+            return
+        self._fresh(out_dir, csv, cmp_csv)
+        cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
+               *self.common_opts(scene_dir, path, out_dir, csv),
+               "--compress", self.run_cfg.get("compress", "lz4"),
+               "--client-timeout", self.run_cfg.get("client_timeout", 600), *self.render_extra, *extra]
+        dt = run_cmd(cmd, self.log, env=self.render_env)
+        self.timings[f"{name}/{label}"] = dt
+        progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
+                      f"{' ' + ' '.join(extra) if extra else ''}"
+                      f"{' (' + label + ')' if '.r' in label else ''} in {dt:.1f} s")
+        self.compare(ref_dir, out_dir, stride, cmp_csv)
+        progress.step(f"{name}: {label} compared with the reference")

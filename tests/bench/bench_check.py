@@ -15,13 +15,13 @@ def check(cond, what):
         print(f"FAIL: {what}", flush=True)
 
 
-def run_small(src, bin_dir, out, suite):
-    """Runs `dmmr-bench SUITE --scale small` into a fresh `out`; exits when it
-    left no report. Returns the report directory."""
+def run_small(src, bin_dir, out, suite, extra=()):
+    """Runs `dmmr-bench SUITE --scale small [EXTRA...]` into a fresh `out`;
+    exits when it left no report. Returns the report directory."""
     if out.exists():
         shutil.rmtree(out)  # a fresh run: the tool must generate its scenes too
     p = subprocess.run([sys.executable, str(Path(src) / "scripts" / "dmmr-bench"), suite, "--scale", "small",
-                        "--bin", str(bin_dir), "--out", str(out)])
+                        "--bin", str(bin_dir), "--out", str(out), *extra])
     check(p.returncode == 0, f"dmmr-bench exit status {p.returncode} (0 expected)")
     rep = out / "report"
     for f in ("summary.json", "report.md"):

@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""CTest bench_scaling_small: runs `dmmr-bench scaling --scale small` and
-checks the scaling report's structure (measurement method, targets
-checklist, scaling, inflation and breakdown tables, summary.json keys) and
-its accuracy (every frame identical to the reference). Never timings: the
-targets' met / not met depend on the machine, only their presence is checked.
+"""CTest bench_scaling_small: runs `dmmr-bench scaling --scale small
+--repeats 2` and checks the scaling report's structure (measurement method,
+targets checklist, scaling, inflation, repeats and breakdown tables,
+summary.json keys) and its accuracy (every frame of every run identical to
+the reference). Never timings: the targets' met / not met depend on the
+machine, only their presence is checked.
 
 usage: check_scaling.py SOURCE_DIR BIN_DIR OUT_DIR"""
 import json
@@ -17,7 +18,7 @@ CLIENTS = [1, 2, 4, 8, 16]
 WORK = ("queried", "visible", "triangles", "occluders", "pixels", "cpu_ms")
 
 
-rep = run_small(src, bin_dir, out, "scaling")
+rep = run_small(src, bin_dir, out, "scaling", ["--repeats", "2"])
 
 s = json.loads((rep / "summary.json").read_text())
 for k in ("cost", "report", "targets", "targets_check", "render_lp_num_threads", "launcher", "cpus",
@@ -28,6 +29,7 @@ check(s.get("render_lp_num_threads") == "0", "dmmr-render ran with LP_NUM_THREAD
 check("--bind-to none" in s.get("launcher", "") and "--oversubscribe" in s.get("launcher", ""),
       "the launcher unbound and oversubscribed")
 check(s.get("accuracy_ok") is True, "summary.json accuracy_ok is true")
+check(s.get("repeats") == 2, "summary.json says each configuration ran twice")
 labels = [c["label"] for c in s.get("configurations", [])]
 check(labels == [f"render-c{n}" for n in CLIENTS], f"configurations are the plain runs with {CLIENTS} clients")
 
@@ -56,6 +58,15 @@ for sc in s.get("scenes", []):
         check(r.get("in_flight") == 3, f"{name}/{n}: the runs' default --in-flight 3 was read")
         check(r["scheduled_frame_ms"] <= r["derived_frame_ms_mean"] * (1 + 1e-9) + 1e-9,
               f"{name}/{n}: scheduled {r['scheduled_frame_ms']} above per-frame {r['derived_frame_ms_mean']}")
+        # both runs kept and compared; the figures are the cheaper one's (the lower middle of two)
+        reps = r.get("repeats", [])
+        check([t["label"] for t in reps] == [f"render-c{n}", f"render-c{n}.r2"], f"{name}/{n}: two runs listed")
+        check(sum(t["used"] for t in reps) == 1, f"{name}/{n}: one run used")
+        check(all(t["max_differing_pixels"] == 0 for t in reps), f"{name}/{n}: every run exact")
+        if len(reps) == 2:
+            used = next(t for t in reps if t["used"])
+            check(used["cpu_ms"] == min(t["cpu_ms"] for t in reps), f"{name}/{n}: the cheaper of two runs used")
+            check(abs(used["cpu_ms"] - r["work_sums"]["cpu_ms"]) < 1e-9, f"{name}/{n}: figures from the run used")
         inf = r.get("inflation") or {}
         check(set(WORK) <= set(inf), f"{name}/{n}: inflation of {', '.join(WORK)}")
         if n == 1:
@@ -65,11 +76,12 @@ for sc in s.get("scenes", []):
 
 md = (rep / "report.md").read_text()
 for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)", "### Work inflation against 1 client",
-                "### Frame time, efficiency, speed-up and balance", "## Summary", "## Plots"):
+                "### Frame time, efficiency, speed-up and balance", "### Repeated runs", "## Summary",
+                "## Plots"):
     check(heading in md, f"report.md has '{heading}'")
 check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")
 for words in ("LP_NUM_THREADS=0", "--bind-to none", "oversubscribed", "--cost cpu", "load average",
-              "Scheduled frame time", "--in-flight"):
+              "Scheduled frame time", "--in-flight", "**Repeats:**"):
     check(words in md, f"the method says {words!r}")
 check(md.count("**met**") + md.count("**not met**") + md.count("**not measured**") == 8, "eight checklist lines")
 check("## Speed against error" not in md, "no sweep section without a sweep")
