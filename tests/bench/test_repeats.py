@@ -5,17 +5,10 @@ configuration's runs and picks the one whose figures it reports
 import sys
 from pathlib import Path
 
+from bench_check import check, failures
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
 from dmmr_bench.analysis import median_run, run_labels  # noqa: E402
-
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print(f"FAIL: {what}", flush=True)
-
 
 check(run_labels("render-c4", 1) == ["render-c4"], "one run keeps the plain label")
 check(run_labels("render-c16", 3) == ["render-c16", "render-c16.r2", "render-c16.r3"], "repeats .r2, .r3")

@@ -171,6 +171,16 @@ int readback(int w, int h) {
   return 0;
 }
 
+// At the origin looking down -Z, 60 degrees vertically.
+Camera benchCamera(double aspect = 1) {
+  Camera cam;
+  cam.eye = {0, 0, 0};
+  cam.fovy_deg = 60;
+  cam.aspect = aspect;
+  cam.near = 0.1;
+  return cam;
+}
+
 // N quads (two triangles; at the default half size of 2 cm, a few pixels
 // each) spread over the view: small, the per-object cost, not the fill, is
 // what a pass of them pays for.
@@ -210,10 +220,7 @@ int shade(int count, double half) {
   const int size = 512;
   auto ctx = createContext({Backend::OSMesa, -1});
   Renderer r(ctx->gl(), size, size);
-  Camera cam;
-  cam.eye = {0, 0, 0};
-  cam.fovy_deg = 60;
-  cam.near = 0.1;
+  Camera cam = benchCamera();
   Quads q = smallQuads(r, count, half);
   Rect region{0, 0, size, size};
   Timing t = time(15, 10, [&] {
@@ -236,11 +243,7 @@ int shade(int count, double half) {
 int frame(int w, int h) {
   auto ctx = createContext({Backend::OSMesa, -1});
   Renderer r(ctx->gl(), w, h);
-  Camera cam;
-  cam.eye = {0, 0, 0};
-  cam.fovy_deg = 60;
-  cam.near = 0.1;
-  cam.aspect = double(w) / h;
+  Camera cam = benchCamera(double(w) / h);
   Quads q = smallQuads(r, 1);
   Rect region{w / 4, h / 4, w / 4, h / 4};
   std::vector<uint8_t> rgba;
@@ -282,10 +285,7 @@ int depth(int count) {
   const int size = 512;
   auto ctx = createContext({Backend::OSMesa, -1});
   Renderer r(ctx->gl(), size, size);
-  Camera cam;
-  cam.eye = {0, 0, 0};
-  cam.fovy_deg = 60;
-  cam.near = 0.1;
+  Camera cam = benchCamera();
   Quads q = smallQuads(r, count);
   Rect region{0, 0, size, size};
   Timing t = time(15, 10, [&] {
