@@ -660,9 +660,8 @@ uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const
     DrawSlot& d = slots_[slot];
     for (int k = 0; k < 3; ++k) {
       std::memcpy(d.v[k], planes + 3 * k, 3 * sizeof(float));
-      d.v[k][3] = 0.f;
+      d.v[k][3] = k == 0 && tex ? 1.f : 0.f;
     }
-    d.v[0][3] = tex ? 1.f : 0.f;
     std::memcpy(d.v[3], s.diffuse, sizeof d.v[3]);
     gl_.Uniform1i(u_slot_, slot);
     if (tex) {

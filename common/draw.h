@@ -211,10 +211,7 @@ class Renderer {
   // The shading program's per-draw values, one slot a draw call, in a
   // persistently mapped ring that the fragment shader reads as a texel
   // buffer (texture unit kSlotUnit) at the slot a vertex shader uniform
-  // passes on flat. On llvmpipe, changing a fragment shader uniform between
-  // draws copies its whole rasteriser state (33 kB, mostly texture slots)
-  // into the scene, about 13 us of CPU a draw call (`hot_bench shade`);
-  // writing a slot and changing a vertex shader uniform costs about 1 us.
+  // passes on flat (why not uniforms: kBoundSlot in draw.cpp).
   struct DrawSlot {
     float v[4][4];  // entry-depth planes (xyz; v[0][3]: textured), diffuse
   };

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numeric>
 #include <vector>
 
@@ -296,6 +297,17 @@ CostSample timedSample(int client, double more, CostSample base) {
   return base;
 }
 
+// Reports frames 0..frames-1 of 3 clients, client k's sample of frame f
+// being sample(f, k), in that order.
+void reportFrames(FramePlanner& planner, int frames,
+                  const std::function<CostSample(int, int)>& sample) {
+  for (int frame = 0; frame < frames; ++frame) {
+    std::vector<CostSample> samples;
+    for (int k = 0; k < 3; ++k) samples.push_back(sample(frame, k));
+    planner.reportCosts(uint32_t(frame), samples);
+  }
+}
+
 // Catching up: a client whose region held more work, every frame, than the
 // others' (its time explained by the fitted model, so its speed stays 1) runs
 // into debt and gets a smaller share of the next frames; off, shares are the
@@ -304,19 +316,15 @@ TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
   Rng rng(37);
   Scene scene = gridScene(rng, 4, 4);
   FramePlanner planner(scene);
-  for (int frame = 0; frame < 12; ++frame) {
-    std::vector<CostSample> samples;
-    for (int k = 0; k < 3; ++k) {
-      CostSample s;
-      s.drawn = rng.real(50, 150);
-      s.triangles = rng.real(1e4, 5e4);
-      s.tested = rng.real(200, 900);
-      s.pixels = rng.real(1e5, 3e5);
-      s.fill = rng.real(1e5, 6e5);
-      samples.push_back(timedSample(k, k == 0 ? 2.0 : 1.0, s));  // client 0: twice the work
-    }
-    planner.reportCosts(uint32_t(frame), samples);
-  }
+  reportFrames(planner, 12, [&](int, int k) {
+    CostSample s;
+    s.drawn = rng.real(50, 150);
+    s.triangles = rng.real(1e4, 5e4);
+    s.tested = rng.real(200, 900);
+    s.pixels = rng.real(1e5, 3e5);
+    s.fill = rng.real(1e5, 6e5);
+    return timedSample(k, k == 0 ? 2.0 : 1.0, s);  // client 0: twice the work
+  });
   ASSERT_TRUE(planner.costModel().fitted);
   EXPECT_EQ(planner.speeds(), (std::vector<double>{1, 1, 1}));  // the model explains the times
   std::vector<double> on = planner.shares(3);
@@ -337,20 +345,16 @@ TEST(FramePlanner, FramesInFlightPayPartOfTheDebt) {
   Rng rng(38);
   Scene scene = gridScene(rng, 4, 4);
   FramePlanner planner(scene);
-  for (int frame = 0; frame < 12; ++frame) {
-    std::vector<CostSample> samples;
-    for (int k = 0; k < 3; ++k) {
-      CostSample s;
-      s.drawn = 50 + 10 * frame;
-      s.triangles = 1e4 + 3e3 * frame;
-      s.tested = 200 + 50 * (frame % 5);
-      s.pixels = 1e5 + 1e4 * (frame % 3);
-      s.fill = 1e5 + 4e4 * (frame % 4);
-      // The same work for all, but client 0 has a quarter more in the last frame.
-      samples.push_back(timedSample(k, k == 0 && frame == 11 ? 1.25 : 1.0, s));
-    }
-    planner.reportCosts(uint32_t(frame), samples);
-  }
+  reportFrames(planner, 12, [](int frame, int k) {
+    CostSample s;
+    s.drawn = 50 + 10 * frame;
+    s.triangles = 1e4 + 3e3 * frame;
+    s.tested = 200 + 50 * (frame % 5);
+    s.pixels = 1e5 + 1e4 * (frame % 3);
+    s.fill = 1e5 + 4e4 * (frame % 4);
+    // The same work for all, but client 0 has a quarter more in the last frame.
+    return timedSample(k, k == 0 && frame == 11 ? 1.25 : 1.0, s);
+  });
   ASSERT_TRUE(planner.costModel().fitted);
   planner.planningFrame(12);
   std::vector<double> measured = planner.shares(3);
