@@ -123,6 +123,7 @@ def main(argv=None):
         "resumed": bool(a.resume),  # wall_s then counts only what was rerun
         "configurations": [{"label": l, "clients": n, "options": x} for l, n, x in confs],
         "run_wall_s": runner.timings,
+        "run_usage": runner.usage,  # dmmr-render runs: whole-process user/kernel CPU s, minor faults
         "osg": {"tool": "dmmr-osgviewer", "label": "osg-occlusion", "backend": "osmesa",
                 "occlusion": "on", "min_vertices": 5000, "visibility_threshold": 0, "query_frame_count": 1,
                 **runner.osg},
@@ -155,7 +156,8 @@ def main(argv=None):
         # a rebuilt report describes the runs it reads: keep when, how long and on how busy a machine
         # they ran, not this rebuild's
         prev = json.loads(old.read_text())
-        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "load_average_start", "load_average_end",
+        for k in ("command", "machine", "wall_s", "resumed", "run_wall_s", "run_usage", "load_average_start",
+                  "load_average_end",
                   "load_average_earlier", "git"):
             if k in prev:
                 meta[k] = prev[k]

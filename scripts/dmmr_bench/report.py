@@ -1,6 +1,7 @@
 """The report: summary.json, tables as Markdown, plots as PNG, per-frame CSVs."""
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -334,6 +335,23 @@ def repeats_table(scenes):
     return "\n".join(lines) + "\n"
 
 
+def usage_table(meta):
+    """Each dmmr-render run's whole-process CPU (every rank and thread, start-up included) and minor page
+    faults, from meta["run_usage"] (runs reused by --resume have none)."""
+    usage, wall = meta.get("run_usage") or {}, meta.get("run_wall_s") or {}
+    lines = ["| run | wall s | user CPU s | kernel CPU s | kernel share | minor page faults |",
+             "|---|---|---|---|---|---|"]
+    def natural(key):  # render-c2 before render-c16
+        return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", key)]
+
+    for key in sorted(usage, key=natural):
+        u = usage[key]
+        cpu = u["user_s"] + u["sys_s"]
+        lines.append(f"| {key} | {f(wall.get(key))} | {u['user_s']:.1f} | {u['sys_s']:.1f} | "
+                     f"{pct(u['sys_s'] / cpu) if cpu > 0 else '-'} | {u['minor_faults']:,} |")
+    return "\n".join(lines) + "\n"
+
+
 def inflation_table(scenes):
     from .analysis import WORK_SUMS
     keys = list(WORK_SUMS)
@@ -389,6 +407,13 @@ def scaling_section(meta, scenes, checks):
         md += ["### Repeated runs", "",
                f"Each configuration ran {meta['repeats']} times; the figures above are those of the run of median "
                "summed client cost (used).", "", repeats_table(scenes)]
+    if meta.get("run_usage"):
+        md += ["### Whole-process CPU of each run", "",
+               "User and kernel CPU seconds of mpirun and every rank with all their threads (getrusage of the "
+               "benchmark's children), start-up included, and the minor page faults they took. The clients' "
+               "figures above are their stage threads' CPU time, which counts a page fault's kernel time too: "
+               "on a shared virtual machine that cost varies from run to run, and a run whose kernel share stands "
+               "out was slowed by it.", "", usage_table(meta)]
     if any(c["met"] is False for c in checks):
         md += ["### Where the time goes (a target is not met)", "",
                "The 1-client run's client first, then each client of the largest run. With fused stages (the "

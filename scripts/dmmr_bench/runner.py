@@ -1,5 +1,6 @@
 """Generates (or reuses) the suite's scenes and runs every configuration."""
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -32,11 +33,23 @@ class Progress:
 LAUNCH_FAILURE = "with PID 0 on"
 
 
-def run_cmd(cmd, log, env=None):
+def children_usage():
+    """User and kernel CPU seconds and minor page faults of this process's
+    waited-for descendants so far (getrusage RUSAGE_CHILDREN: mpirun and,
+    through it, every rank and their threads)."""
+    u = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return {"user_s": u.ru_utime, "sys_s": u.ru_stime, "minor_faults": u.ru_minflt}
+
+
+def run_cmd(cmd, log, env=None, usage=None):
     """Runs cmd, appending its output to log; raises with the log's tail on failure.
-    A run that mpirun reports as never launched is tried once more."""
+    A run that mpirun reports as never launched is tried once more. `usage`
+    (a dict, optional) gets the last attempt's whole-process CPU time and page
+    faults (children_usage's keys): on a shared virtual machine a page fault's
+    cost varies from run to run, and a run's kernel time shows it."""
     for attempt in range(2):
         t0 = time.monotonic()  # the last attempt's time
+        u0 = children_usage()
         start = Path(log).stat().st_size if Path(log).exists() else 0
         with open(log, "a") as f:
             f.write("$ " + " ".join(str(c) for c in cmd) + "\n")
@@ -51,6 +64,9 @@ def run_cmd(cmd, log, env=None):
         with open(log, "a") as f:
             f.write("dmmr-bench: mpirun could not launch a rank; trying once more\n")
     dt = time.monotonic() - t0
+    if usage is not None:
+        u1 = children_usage()
+        usage.update({k: u1[k] - u0[k] for k in u1})
     if p.returncode != 0:
         tail = Path(log).read_text().splitlines()[-15:]
         raise RuntimeError(f"command failed ({p.returncode}): {' '.join(str(c) for c in cmd)}\n" + "\n".join(tail))
@@ -92,6 +108,7 @@ class Runner:
                 self.render_mpi += ["-x", "LP_NUM_THREADS"]
         self.render_extra = ["--stage-turns", str(self.out / "stage-turns.lock")] if cost == "turns" else []
         self.timings = {}  # label -> wall seconds
+        self.usage = {}  # dmmr-render runs' label -> children_usage of the run
         # each dmmr-render configuration run this many times (run_labels); the
         # report takes the run of median cost (analysis.median_run)
         self.repeats = max(1, int(repeats))
@@ -289,8 +306,10 @@ class Runner:
                *self.common_opts(scene_dir, path, out_dir, csv),
                "--compress", self.run_cfg.get("compress", "lz4"),
                "--client-timeout", self.run_cfg.get("client_timeout", 600), *self.render_extra, *extra]
-        dt = run_cmd(cmd, self.log, env=self.render_env)
+        usage = {}
+        dt = run_cmd(cmd, self.log, env=self.render_env, usage=usage)
         self.timings[f"{name}/{label}"] = dt
+        self.usage[f"{name}/{label}"] = usage
         progress.step(f"{name}: dmmr-render {n} client{'s' if n > 1 else ''}"
                       f"{' ' + ' '.join(extra) if extra else ''}"
                       f"{' (' + label + ')' if '.r' in label else ''} in {dt:.1f} s")

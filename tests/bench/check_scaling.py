@@ -74,9 +74,15 @@ for sc in s.get("scenes", []):
         # each client reads back its own region: the pixels read back sum to one frame whatever n
         check(inf.get("pixels") is not None and abs(inf["pixels"] - 1.0) < 1e-6, f"{name}/{n}: pixels tile the frame")
 
+# every dmmr-render run (repeats included) has its whole-process CPU and page faults
+usage = s.get("run_usage") or {}
+renders = [k for k in s.get("run_wall_s", {}) if "/render-c" in k]
+check(renders and sorted(usage) == sorted(renders), f"usage of every render run: {sorted(usage)}")
+check(all(u["user_s"] > 0 and u["minor_faults"] > 0 for u in usage.values()), "each run's CPU and faults counted")
 md = (rep / "report.md").read_text()
 for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)", "### Work inflation against 1 client",
-                "### Frame time, efficiency, speed-up and balance", "### Repeated runs", "## Summary",
+                "### Frame time, efficiency, speed-up and balance", "### Repeated runs",
+                "### Whole-process CPU of each run", "## Summary",
                 "## Plots"):
     check(heading in md, f"report.md has '{heading}'")
 check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")
