@@ -1037,11 +1037,15 @@ class VisibilityStage {
     }
     StageTurns::Hold turn(turns_.get());
     double cpu0 = threadCpuMs();
+    ThreadUsage usage0 = threadUsage();
     gl_->meshes.nextFrame();
     GpuCacheStats before = gl_->meshes.stats();
     Decision d = culler_->decide(job);
     addGpuStats(out.stats, before, gl_->meshes.stats());
     out.stats.vis_cpu_ms = threadCpuMs() - cpu0;
+    ThreadUsage usage1 = threadUsage();
+    out.stats.vis_sys_ms = usage1.sys_ms - usage0.sys_ms;
+    out.stats.vis_faults = usage1.minor_faults - usage0.minor_faults;
     out.culled = true;
     out.visible = std::move(d.visible);
     out.stats.prepare_ms = d.prepare_ms;
@@ -1136,6 +1140,7 @@ class RenderStage {
     injectFault("render", job.frame);
     StageTurns::Hold turn(turns_.get());
     double cpu0 = threadCpuMs();
+    ThreadUsage usage0 = threadUsage();
     SubFrame out;
     out.frame = job.frame;
     out.region = job.region;
@@ -1145,7 +1150,7 @@ class RenderStage {
     if (ray_) {
       trace(v, st);
       out.drawn = v.visible;
-      finishSubFrame(job, cpu0, out);
+      finishSubFrame(job, cpu0, usage0, out);
       return out;
     }
     // Per job: under tiles each tile is a frame for eviction, on purpose
@@ -1233,7 +1238,7 @@ class RenderStage {
     r.readPixels(job.region, &rgba_);
     st.readback_ms = msSince(tr);
     out.drawn = drawn;  // lets the server weigh the next frames by what shows
-    finishSubFrame(job, cpu0, out);
+    finishSubFrame(job, cpu0, usage0, out);
     return out;
   }
 
@@ -1458,7 +1463,8 @@ class RenderStage {
   }
 
   // rgba_ holds the region's pixels: convert, compress, finish the stats.
-  void finishSubFrame(const FrameJob& job, double cpu0, SubFrame& out) {
+  // `cpu0`, `usage0`: the stage thread's CPU clock and usage when the job began.
+  void finishSubFrame(const FrameJob& job, double cpu0, ThreadUsage usage0, SubFrame& out) {
     ClientStats& st = out.stats;
     auto tr = Clock::now();
     rgb_.resize(size_t(job.region.area()) * 3);
@@ -1472,6 +1478,9 @@ class RenderStage {
     st.bytes_raw = rgb_.size();
     st.bytes_sent = out.data.size();
     st.render_cpu_ms = threadCpuMs() - cpu0;
+    ThreadUsage usage1 = threadUsage();
+    st.render_sys_ms = usage1.sys_ms - usage0.sys_ms;
+    st.render_faults = usage1.minor_faults - usage0.minor_faults;
     st.send_ms = last_send_ms_;
     std::string chosen = control_.finished(job.frame);
     if (!chosen.empty())

@@ -2,6 +2,9 @@
 // else runs on the machine (its wall time includes waiting for a core).
 #pragma once
 
+#include <sys/resource.h>
+
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -16,6 +19,26 @@ inline double threadCpuMs() {
   timespec ts{};
   ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+// The calling thread's kernel time and minor page faults so far
+// (getrusage(RUSAGE_THREAD)). Differences of two calls on one thread split a
+// stage's CPU time (threadCpuMs) into user and kernel parts: on a virtual
+// machine the kernel's cost of a page fault (mostly zeroing a fresh page)
+// depends on the host's load and moved by up to 10x between runs of one
+// command (docs/benchmarks.md, "Kernel time"), so a cost judged by CPU time
+// is shown beside its kernel part. Linux splits a thread's exact run time by
+// its sampled user and kernel ticks: the kernel part of a short interval is
+// approximate, the sum over a run is not.
+struct ThreadUsage {
+  double sys_ms = 0;
+  uint64_t minor_faults = 0;
+};
+inline ThreadUsage threadUsage() {
+  rusage ru{};
+  if (::getrusage(RUSAGE_THREAD, &ru) != 0) return {};
+  return {double(ru.ru_stime.tv_sec) * 1e3 + double(ru.ru_stime.tv_usec) * 1e-3,
+          uint64_t(ru.ru_minflt)};
 }
 
 // Whether llvmpipe rasterises on the calling GL thread (LP_NUM_THREADS=0,

@@ -89,12 +89,14 @@ void putSubFrame(ByteWriter& w, const SubFrame& s) {
   w.u8(uint8_t(s.codec));
   w.u64(s.raw_size);
   const ClientStats& t = s.stats;
-  for (double v : {t.prepare_ms, t.retrieve_ms, t.pass_ms, t.load_ms, t.render_ms, t.readback_ms,
-                   t.compress_ms, t.send_ms, t.vis_cpu_ms, t.render_cpu_ms})
+  for (double v :
+       {t.prepare_ms, t.retrieve_ms, t.pass_ms, t.load_ms, t.render_ms, t.readback_ms,
+        t.compress_ms, t.send_ms, t.vis_cpu_ms, t.render_cpu_ms, t.vis_sys_ms, t.render_sys_ms})
     w.f64(v);
-  for (uint64_t v : {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw,
-                     t.bytes_sent, t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes,
-                     t.uncached, t.skipped, t.gpu_resident, t.ram_resident})
+  for (uint64_t v :
+       {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw, t.bytes_sent,
+        t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes, t.uncached, t.skipped,
+        t.gpu_resident, t.ram_resident, t.vis_faults, t.render_faults})
     w.u64(v);
   w.u64(s.data.size());
   w.array(s.data.data(), s.data.size());
@@ -113,11 +115,13 @@ SubFrame getSubFrame(ByteReader& r) {
   if (s.raw_size != uint64_t(s.region.area()) * 3) r.fail("raw size does not match the region");
   ClientStats& t = s.stats;
   for (double* v : {&t.prepare_ms, &t.retrieve_ms, &t.pass_ms, &t.load_ms, &t.render_ms,
-                    &t.readback_ms, &t.compress_ms, &t.send_ms, &t.vis_cpu_ms, &t.render_cpu_ms})
+                    &t.readback_ms, &t.compress_ms, &t.send_ms, &t.vis_cpu_ms, &t.render_cpu_ms,
+                    &t.vis_sys_ms, &t.render_sys_ms})
     *v = r.f64("stats");
-  for (uint64_t* v : {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw,
-                      &t.bytes_sent, &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses,
-                      &t.disk_bytes, &t.uncached, &t.skipped, &t.gpu_resident, &t.ram_resident})
+  for (uint64_t* v :
+       {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw, &t.bytes_sent,
+        &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses, &t.disk_bytes, &t.uncached,
+        &t.skipped, &t.gpu_resident, &t.ram_resident, &t.vis_faults, &t.render_faults})
     *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
   r.array(&s.drawn, r.u32("drawn count"), "drawn objects");
@@ -168,7 +172,9 @@ void accumulate(ClientStats& a, const ClientStats& b) {
                       {&a.compress_ms, b.compress_ms},
                       {&a.send_ms, b.send_ms},
                       {&a.vis_cpu_ms, b.vis_cpu_ms},
-                      {&a.render_cpu_ms, b.render_cpu_ms}})
+                      {&a.render_cpu_ms, b.render_cpu_ms},
+                      {&a.vis_sys_ms, b.vis_sys_ms},
+                      {&a.render_sys_ms, b.render_sys_ms}})
     *x += y;
   for (auto [x, y] : {std::pair{&a.objects, b.objects},
                       {&a.occluders, b.occluders},
@@ -183,7 +189,9 @@ void accumulate(ClientStats& a, const ClientStats& b) {
                       {&a.ram_misses, b.ram_misses},
                       {&a.disk_bytes, b.disk_bytes},
                       {&a.uncached, b.uncached},
-                      {&a.skipped, b.skipped}})
+                      {&a.skipped, b.skipped},
+                      {&a.vis_faults, b.vis_faults},
+                      {&a.render_faults, b.render_faults}})
     *x += y;
   a.gpu_resident = b.gpu_resident;
   a.ram_resident = b.ram_resident;

@@ -54,6 +54,11 @@ struct ClientStats {
   // rasterises on these threads, so they are the stages' whole cost,
   // whatever else runs on the machine.
   double vis_cpu_ms = 0, render_cpu_ms = 0;
+  // Of that CPU time, the kernel's part, and the minor page faults the stage
+  // threads took (threadUsage): on a virtual machine a fault's cost depends
+  // on the host, so benchmarks show CPU time with and without it.
+  double vis_sys_ms = 0, render_sys_ms = 0;
+  uint64_t vis_faults = 0, render_faults = 0;
   uint64_t objects = 0;  // objects in the region's list from the server
   uint64_t occluders = 0, queried = 0, visible = 0;
   uint64_t triangles = 0;  // triangles drawn by the render stage

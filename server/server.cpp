@@ -80,11 +80,12 @@ std::string statsHeader(int clients) {
       "objects_in_frustum,triangles_in_frustum";
   for (int k = 1; k <= clients; ++k)
     for (const char* c :
-         {"objects",     "occluders",    "queried",    "visible",   "triangles",    "prepare_ms",
-          "retrieve_ms", "pass_ms",      "load_ms",    "render_ms", "readback_ms",  "compress_ms",
-          "send_ms",     "bytes_raw",    "bytes_sent", "gpu_hits",  "gpu_misses",   "ram_hits",
-          "ram_misses",  "disk_bytes",   "uncached",   "skipped",   "gpu_resident", "ram_resident",
-          "vis_cpu_ms",  "render_cpu_ms"})
+         {"objects",       "occluders",   "queried",       "visible",      "triangles",
+          "prepare_ms",    "retrieve_ms", "pass_ms",       "load_ms",      "render_ms",
+          "readback_ms",   "compress_ms", "send_ms",       "bytes_raw",    "bytes_sent",
+          "gpu_hits",      "gpu_misses",  "ram_hits",      "ram_misses",   "disk_bytes",
+          "uncached",      "skipped",     "gpu_resident",  "ram_resident", "vis_cpu_ms",
+          "render_cpu_ms", "vis_sys_ms",  "render_sys_ms", "vis_faults",   "render_faults"})
       h += ",c" + std::to_string(k) + "_" + c;
   return h + "\n";
 }
@@ -367,7 +368,8 @@ class Assembler {
           << c.send_ms << "," << c.bytes_raw << "," << c.bytes_sent << "," << c.gpu_hits << ","
           << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
           << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
-          << c.vis_cpu_ms << "," << c.render_cpu_ms;
+          << c.vis_cpu_ms << "," << c.render_cpu_ms << "," << c.vis_sys_ms << "," << c.render_sys_ms
+          << "," << c.vis_faults << "," << c.render_faults;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
     if (division_log_ && rec.forecasts.size() == rec.clients.size() &&
         rec.planned.size() == rec.clients.size())

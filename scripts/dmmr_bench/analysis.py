@@ -59,6 +59,9 @@ LINK_GBPS = 1.0  # nominal network for the derived transfer time (set by the sui
 #   wall:  the stages' wall times (on a shared machine: waiting for a core included);
 #   cpu:   the stage threads' CPU time (vis_cpu_ms + render_cpu_ms; the runs set
 #          LP_NUM_THREADS=0 so llvmpipe rasterises on those threads);
+#   user:  cpu less the stage threads' kernel time (cN_vis_sys_ms +
+#          cN_render_sys_ms): leaves out page faults' kernel time, whose cost on
+#          a virtual machine depends on the host and varies from run to run;
 #   turns: the stages' wall times, taken with dmmr-render --stage-turns (one GL
 #          stage at a time on the machine).
 COST = "wall"
@@ -67,6 +70,8 @@ COST_DEFINITIONS = {
             "waiting for a core when processes share the machine",
     "cpu": "stage threads' CPU time (vis_cpu_ms + render_cpu_ms, CLOCK_THREAD_CPUTIME_ID), "
            "dmmr-render run with LP_NUM_THREADS=0 so that llvmpipe rasterises on the stage threads",
+    "user": "stage threads' user CPU time (vis_cpu_ms + render_cpu_ms less vis_sys_ms + render_sys_ms, the "
+            "kernel part from getrusage(RUSAGE_THREAD)), dmmr-render run with LP_NUM_THREADS=0",
     "turns": "stage wall times (prepare+retrieve+load+render+readback+compress) with "
              "dmmr-render --stage-turns: one GL stage at a time on the machine",
 }
@@ -80,22 +85,26 @@ def server_work(r, cost=None):
     """The server's culling and division in the frame: by `cost` "cpu" the CPU
     time of the threads that did them (plan_cpu_ms; CSVs from before it was
     recorded fall back to the wall times), else their wall times."""
-    if (cost or COST) == "cpu" and r.get("plan_cpu_ms") not in (None, ""):
+    if (cost or COST) in ("cpu", "user") and r.get("plan_cpu_ms") not in (None, ""):
         return num(r, "plan_cpu_ms")
     return num(r, "cull_ms") + num(r, "divide_ms")
 
 
 def client_work(r, k, cost=None):
     """Client k's own work in the frame, by `cost` (default COST)."""
-    if (cost or COST) == "cpu":
-        return num(r, f"c{k}_vis_cpu_ms") + num(r, f"c{k}_render_cpu_ms")
+    c = cost or COST
+    if c in ("cpu", "user"):
+        return stage_work(r, k, "vis", c) + stage_work(r, k, "render", c)
     return sum(num(r, f"c{k}_{s}") for s in WORK_VIS + WORK_RENDER)
 
 
 def stage_work(r, k, stage, cost=None):
     """Client k's visibility ("vis") or render ("render") stage work, by `cost`."""
-    if (cost or COST) == "cpu":
+    c = cost or COST
+    if c == "cpu":
         return num(r, f"c{k}_{stage}_cpu_ms")
+    if c == "user":
+        return num(r, f"c{k}_{stage}_cpu_ms") - num(r, f"c{k}_{stage}_sys_ms")
     return sum(num(r, f"c{k}_{s}") for s in (WORK_VIS if stage == "vis" else WORK_RENDER))
 
 
@@ -232,6 +241,17 @@ def faster(base, x):
     return base / x
 
 
+def has_kernel_time(row):
+    """Whether a stats row has the stage threads' kernel time and faults (CSVs from before have not)."""
+    return "c1_render_sys_ms" in row
+
+
+def max_over_mean(rows, n, cost=None):
+    """Median over `rows` of each frame's max over clients / mean over clients of client_work."""
+    return median(max(w) / mean(w) if mean(w) > 0 else 1.0
+                  for w in ([client_work(r, k, cost) for k in range(1, n + 1)] for r in rows))
+
+
 def render_stats(path, clients, in_flight=3):
     rows = read_csv(path)
     n = clients_of(rows[0])
@@ -259,9 +279,7 @@ def render_stats(path, clients, in_flight=3):
         "derived_cpu_frame_ms_mean": (mean(derived_frame(r, n, "cpu") for r in s)
                                       if "c1_render_cpu_ms" in rows[0] else None),
         # max over clients / mean over clients of each frame's work, median over frames
-        "client_max_over_mean_median": median(
-            max(w) / mean(w) if mean(w) > 0 else 1.0
-            for w in ([client_work(r, k) for k in range(1, n + 1)] for r in s)),
+        "client_max_over_mean_median": max_over_mean(s, n),
         "server": {k: mean(num(r, k) for r in s) for k in SERVER_STAGES},
         "objects_in_frustum_mean": mean(num(r, "objects_in_frustum") for r in s),
         "triangles_in_frustum_mean": mean(num(r, "triangles_in_frustum") for r in s),
@@ -273,6 +291,12 @@ def render_stats(path, clients, in_flight=3):
         },
         "per_client": [],
     }
+    if has_kernel_time(rows[0]):
+        # the same figures by user CPU (cost "user"): what the kernel's page
+        # faults take is left out (see COST_DEFINITIONS)
+        out["derived_user_frame_ms_mean"] = mean(derived_frame(r, n, "user") for r in s)
+        out["scheduled_user_frame_ms"] = derived_schedule(rows, n, in_flight, "user")[0]
+        out["client_max_over_mean_user_median"] = max_over_mean(s, n, "user")
     gh = gm = rh = rm = 0.0
     for k in range(1, n + 1):
         c = {st_: mean(num(r, f"c{k}_{st_}") for r in s) for st_ in CLIENT_STAGES}
@@ -280,6 +304,9 @@ def render_stats(path, clients, in_flight=3):
         c["work_ms"] = sum(c[x] for x in WORK_VIS + WORK_RENDER)
         c["vis_cpu_ms"] = mean(num(r, f"c{k}_vis_cpu_ms") for r in s)
         c["render_cpu_ms"] = mean(num(r, f"c{k}_render_cpu_ms") for r in s)
+        if has_kernel_time(rows[0]):
+            c["sys_ms"] = mean(num(r, f"c{k}_vis_sys_ms") + num(r, f"c{k}_render_sys_ms") for r in s)
+            c["faults_mean"] = mean(num(r, f"c{k}_vis_faults") + num(r, f"c{k}_render_faults") for r in s)
         c["cost_ms"] = mean(client_work(r, k) for r in s)
         c["transfer_ms"] = transfer_ms(c["bytes_sent_mean"])
         hits = {x: sum(num(r, f"c{k}_{x}") for r in s) for x in ("gpu_hits", "gpu_misses", "ram_hits", "ram_misses")}
@@ -380,6 +407,11 @@ def analyse_scene(name, info, configurations, repeats=1):
         if base and r["plain"] and r["scheduled_frame_ms"] > 0:
             r["scheduled_efficiency"] = base["scheduled_frame_ms"] / (r["clients"] * r["scheduled_frame_ms"])
             r["scheduled_speedup_vs_1_client"] = base["scheduled_frame_ms"] / r["scheduled_frame_ms"]
+        if base and r["plain"] and base.get("scheduled_user_frame_ms") and r.get("scheduled_user_frame_ms"):
+            r["scheduled_user_efficiency"] = base["scheduled_user_frame_ms"] / (
+                r["clients"] * r["scheduled_user_frame_ms"])
+            r["derived_user_efficiency"] = base["derived_user_frame_ms_mean"] / (
+                r["clients"] * r["derived_user_frame_ms_mean"])
     # work inflation: each run's work summed over clients against the 1-client run's
     for r in res["runs"].values():
         r["work_sums"] = work_sums(r)

@@ -60,9 +60,10 @@ def main(argv=None):
     ap.add_argument("--render-option", action="append", default=[], metavar="OPT",
                     help="an extra dmmr-render option for the plain runs (not the threshold sweep), "
                          "repeatable, e.g. --render-option=--stages --render-option=fused")
-    ap.add_argument("--cost", choices=["wall", "cpu", "turns"],
+    ap.add_argument("--cost", choices=["wall", "cpu", "user", "turns"],
                     help="what the derived cluster times are built from: the stages' wall times (wall), "
-                         "their threads' CPU time with LP_NUM_THREADS=0 (cpu), or wall times with the GL "
+                         "their threads' CPU time with LP_NUM_THREADS=0 (cpu), that less its kernel part "
+                         "(user), or wall times with the GL "
                          "stages taking turns (turns); default: the suite's run.cost, else wall")
     ap.add_argument("--repeats", type=int, metavar="N",
                     help="run each dmmr-render configuration N times and report the run of median summed "
@@ -79,7 +80,7 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     cost = a.cost or suite.get("run", {}).get("cost", "wall")
     if cost not in analysis.COST_DEFINITIONS:
-        sys.exit(f"dmmr-bench: {suite_path}: run.cost {cost!r} is not one of wall, cpu, turns")
+        sys.exit(f"dmmr-bench: {suite_path}: run.cost {cost!r} is not one of wall, cpu, user, turns")
     analysis.COST = cost
     repeats = a.repeats if a.repeats is not None else int(suite.get("run", {}).get("repeats", 1))
     if repeats < 1:

@@ -189,6 +189,10 @@ def method_section(meta):
         "wall": "a client's cost in a frame is the wall time of its working stages (prepare, retrieve, load, "
                 "render, read back, compress), waiting for a core included: with more processes than cores this "
                 "measures contention as much as work.",
+        "user": "a client's cost in a frame is the user CPU time of its two stage threads (`cN_vis_cpu_ms + "
+                "cN_render_cpu_ms` less their kernel part `cN_vis_sys_ms + cN_render_sys_ms`, from "
+                "`getrusage(RUSAGE_THREAD)`): CPU time free of waiting for a core, without the kernel's page-fault "
+                "time, whose cost on a shared virtual machine depends on the host.",
         "turns": "a client's cost in a frame is the wall time of its working stages, taken with `--stage-turns` "
                  "(one GL stage at a time on the machine).",
     }[cost]
@@ -352,6 +356,30 @@ def usage_table(meta):
     return "\n".join(lines) + "\n"
 
 
+def kernel_table(scenes):
+    """Per run: the clients' stage-thread CPU summed, its kernel part and page faults, and the scaling figures
+    by CPU time beside those by user CPU time (runs whose CSVs have no kernel time are left out)."""
+    lines = ["| scene | clients | client CPU ms | of it kernel ms | kernel share | page faults | "
+             "scheduled efficiency (CPU) | (user CPU) | max/mean client (CPU) | (user CPU) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    shown = False
+    for s in scenes:
+        for r in scaling_runs(s):
+            if "scheduled_user_frame_ms" not in r:
+                continue
+            shown = True
+            cpu = sum(c["vis_cpu_ms"] + c["render_cpu_ms"] for c in r["per_client"])
+            sys_ms = sum(c.get("sys_ms", 0) for c in r["per_client"])
+            faults = sum(c.get("faults_mean", 0) for c in r["per_client"])
+            lines.append(f"| {s['scene']} | {r['clients']} | {f(cpu)} | {f(sys_ms)} | "
+                         f"{pct(sys_ms / cpu) if cpu > 0 else '-'} | {faults:,.0f} | "
+                         f"{f(r.get('scheduled_efficiency'), '{:.2f}')} | "
+                         f"{f(r.get('scheduled_user_efficiency'), '{:.2f}')} | "
+                         f"{f(r['client_max_over_mean_median'], '{:.2f}')} | "
+                         f"{f(r.get('client_max_over_mean_user_median'), '{:.2f}')} |")
+    return "\n".join(lines) + "\n" if shown else ""
+
+
 def inflation_table(scenes):
     from .analysis import WORK_SUMS
     keys = list(WORK_SUMS)
@@ -414,6 +442,16 @@ def scaling_section(meta, scenes, checks):
                "figures above are their stage threads' CPU time, which counts a page fault's kernel time too: "
                "on a shared virtual machine that cost varies from run to run, and a run whose kernel share stands "
                "out was slowed by it.", "", usage_table(meta)]
+    kernel = kernel_table(scenes)
+    if kernel:
+        md += ["### Kernel time in the clients' stage threads", "",
+               "Per frame (means over frames 1..), summed over the clients: their stage threads' CPU time, the "
+               "kernel's part of it and the minor page faults they took (`getrusage(RUSAGE_THREAD)`), then the "
+               "scheduled efficiency and per-frame balance by CPU time (the figures above) and by user CPU time "
+               "(`--cost user`: the kernel's part left out). On a shared virtual machine a page fault's cost "
+               "depends on the host; where the two columns part, the kernel's time moved the figure. The kernel part is "
+               "Linux's split of a thread's exact run time by its sampled user and kernel ticks (every 4 ms at "
+               "250 Hz): over runs of frames of a few milliseconds it is coarse.", "", kernel]
     if any(c["met"] is False for c in checks):
         md += ["### Where the time goes (a target is not met)", "",
                "The 1-client run's client first, then each client of the largest run. With fused stages (the "

@@ -98,11 +98,12 @@ class Runner:
             self.mpi += ["-x", "LP_NUM_THREADS"]
         # How the clients' costs are taken (analysis.COST_DEFINITIONS): cpu runs
         # dmmr-render with LP_NUM_THREADS=0 (rasterising on the stage threads,
-        # so their CPU time is the whole cost); turns with --stage-turns.
+        # so their CPU time is the whole cost), and so does user; turns with
+        # --stage-turns.
         self.cost = cost
         self.render_env = dict(self.env)
         self.render_mpi = list(self.mpi)
-        if cost == "cpu":
+        if cost in ("cpu", "user"):
             self.render_env["LP_NUM_THREADS"] = "0"
             if not lp:
                 self.render_mpi += ["-x", "LP_NUM_THREADS"]

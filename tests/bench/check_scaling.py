@@ -67,6 +67,15 @@ for sc in s.get("scenes", []):
             used = next(t for t in reps if t["used"])
             check(used["cpu_ms"] == min(t["cpu_ms"] for t in reps), f"{name}/{n}: the cheaper of two runs used")
             check(abs(used["cpu_ms"] - r["work_sums"]["cpu_ms"]) < 1e-9, f"{name}/{n}: figures from the run used")
+        # the stage threads' kernel time and faults, and the figures by user CPU beside those by CPU
+        for k in ("scheduled_user_frame_ms", "client_max_over_mean_user_median", "scheduled_user_efficiency"):
+            check(r.get(k) is not None, f"{name}/{n}: {k}")
+        for c in r["per_client"]:
+            check(0 <= c.get("sys_ms", -1) <= c["vis_cpu_ms"] + c["render_cpu_ms"] + 1.0,
+                  f"{name}/{n}: a client's kernel time is part of its CPU time ({c.get('sys_ms')})")
+            check(c.get("faults_mean", -1) >= 0, f"{name}/{n}: a client's page faults recorded")
+        check(r.get("scheduled_user_frame_ms", 0) <= r["scheduled_frame_ms"] * (1 + 1e-9) + 1e-9,
+              f"{name}/{n}: the schedule by user CPU is no longer than by CPU")
         inf = r.get("inflation") or {}
         check(set(WORK) <= set(inf), f"{name}/{n}: inflation of {', '.join(WORK)}")
         if n == 1:
@@ -82,7 +91,7 @@ check(all(u["user_s"] > 0 and u["minor_faults"] > 0 for u in usage.values()), "e
 md = (rep / "report.md").read_text()
 for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)", "### Work inflation against 1 client",
                 "### Frame time, efficiency, speed-up and balance", "### Repeated runs",
-                "### Whole-process CPU of each run", "## Summary",
+                "### Whole-process CPU of each run", "### Kernel time in the clients' stage threads", "## Summary",
                 "## Plots"):
     check(heading in md, f"report.md has '{heading}'")
 check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")

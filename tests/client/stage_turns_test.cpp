@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <memory>
 #include <thread>
 
 #include "cpu_time.h"
@@ -110,6 +111,33 @@ TEST(ThreadCpuTime, CountsTheCallingThreadOnlyNotTheProcess) {
   // The sleeping thread used little CPU while the other spun 100 ms (a
   // process-wide clock would show at least 100 ms here).
   EXPECT_LT(mine, 50) << "wall " << wall;
+}
+
+TEST(ThreadUsage, CountsTheCallingThreadsPageFaultsAndKernelTime) {
+  // 64 MiB touched page by page on another thread: at least one fault per
+  // 4 KiB page there (fewer with huge pages: then at least one per 2 MiB),
+  // nearly none here, and the kernel time of zeroing them is within that
+  // thread's CPU time.
+  constexpr size_t kBytes = size_t(64) << 20;
+  ThreadUsage theirs{};
+  double their_cpu = 0;
+  ThreadUsage mine0 = threadUsage();
+  std::thread toucher([&] {
+    ThreadUsage u0 = threadUsage();
+    double c0 = threadCpuMs();
+    std::unique_ptr<char[]> block(new char[kBytes]);
+    volatile char* bytes = block.get();  // volatile: the stores are not elided
+    for (size_t i = 0; i < kBytes; i += 4096) bytes[i] = char(i);
+    ThreadUsage u1 = threadUsage();
+    their_cpu = threadCpuMs() - c0;
+    theirs = {u1.sys_ms - u0.sys_ms, u1.minor_faults - u0.minor_faults};
+  });
+  toucher.join();
+  ThreadUsage mine1 = threadUsage();
+  EXPECT_GE(theirs.minor_faults, kBytes / (2u << 20));
+  EXPECT_LT(mine1.minor_faults - mine0.minor_faults, 64u);
+  EXPECT_GE(theirs.sys_ms, 0);
+  EXPECT_LE(theirs.sys_ms, their_cpu + 1.0);
 }
 
 }  // namespace
