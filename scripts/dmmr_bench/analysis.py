@@ -351,6 +351,17 @@ def run_labels(label, repeats):
     return [label] + [f"{label}.r{k}" for k in range(2, repeats + 1)]
 
 
+def run_order(labels, repeats):
+    """The order of a scene's dmmr-render runs: `repeats` rounds, each running
+    every configuration once (in `labels` order) as (label, run label). On a
+    shared virtual machine the host's memory traffic slows memory-bound work
+    by up to 1.5x for a minute at a time while arithmetic runs at full speed
+    (docs/benchmarks.md, "A machine-speed probe"): run back to back, all of
+    one configuration's repeats could fall in one slow spell; in rounds each
+    spell is shared among the configurations."""
+    return [(label, run_labels(label, repeats)[k]) for k in range(repeats) for label in labels]
+
+
 def median_run(costs):
     """Index of the median of `costs` (one figure per repeated run): the lower
     middle one for an even count, so that the pick is always one of the runs."""

@@ -233,8 +233,9 @@ def method_section(meta):
         "count), pixels read back (`cN_bytes_raw / 3`) and client CPU time (`cN_vis_cpu_ms + cN_render_cpu_ms`).",
         f"- **Machine while measuring:** {load}, on {meta.get('cpus', '?')} cores "
         "(other work may have shared the machine).",
-        *([f"- **Repeats:** each dmmr-render configuration ran {meta['repeats']} times, one after another; "
-           "every figure is that of the run with the median summed client cost (the lower middle one of an "
+        *([f"- **Repeats:** each dmmr-render configuration ran {meta['repeats']} times, in rounds (each round "
+           "runs every configuration once, so that a slow spell of a shared machine falls on several "
+           "configurations, not on all of one's runs); every figure is that of the run with the median summed client cost (the lower middle one of an "
            "even count), every run is compared with the reference, and the scaling section lists each run's "
            "cost and frame times."] if int(meta.get("repeats", 1) or 1) > 1 else []),
         accuracy_line(meta), ""])

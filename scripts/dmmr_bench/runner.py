@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from .analysis import run_labels
+from .analysis import run_labels, run_order
 
 
 OSG_TOOL = "dmmr-osgviewer"
@@ -284,9 +284,10 @@ class Runner:
             dt = run_cmd([self.bin / OSG_TOOL, *self.osg_opts(osgb, path, osg_dir, osg_csv)], self.log, env=self.env)
             self.timings[f"{name}/{OSG_LABEL}"] = dt
             progress.step(f"{name}: {OSG_TOOL} (osgViewer + OcclusionQueryNode, original model) in {dt:.1f} s")
-        for label, n, extra in self.configurations():
-            for run_label in self.run_labels(label):
-                self.run_render(rd, name, run_label, n, extra, scene_dir, path, ref_dir, stride, progress)
+        configurations = {label: (n, extra) for label, n, extra in self.configurations()}
+        for label, run_label in run_order(list(configurations), self.repeats):
+            n, extra = configurations[label]
+            self.run_render(rd, name, run_label, n, extra, scene_dir, path, ref_dir, stride, progress)
         return {"scene_dir": str(scene_dir), "walkthrough": str(path), "runs_dir": str(rd), "reference_stride": stride,
                 "osg_csv": str(osg_csv) if osg_csv else None}
 
