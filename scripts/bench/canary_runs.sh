@@ -24,7 +24,7 @@ path=${scene%.scene}.path
 # shellcheck source=lib.sh
 source scripts/bench/lib.sh
 mkdir -p "$out"
-g++ -O2 -o "$out/speed_canary" scripts/bench/speed_canary.cpp
+g++ -O2 -I common -o "$out/speed_canary" scripts/bench/speed_canary.cpp
 variants=plain
 [ -n "${DMMR_BENCH_TUNABLES:-}" ] && variants="plain tunables"
 for r in $(seq 1 "$reps"); do

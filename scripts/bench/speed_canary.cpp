@@ -22,12 +22,12 @@
 #include <string>
 #include <vector>
 
+#include "cpu_time.h"  // common/: built with -I common (canary_runs.sh)
+
 namespace {
 
 double threadCpuUs() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return double(t.tv_sec) * 1e6 + double(t.tv_nsec) * 1e-3;
+  return dmmr::threadCpuMs() * 1e3;
 }
 
 double wallS() {
