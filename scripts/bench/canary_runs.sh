@@ -24,14 +24,17 @@ path=${scene%.scene}.path
 # shellcheck source=lib.sh
 source scripts/bench/lib.sh
 mkdir -p "$out"
-g++ -O2 -I common -o "$out/speed_canary" scripts/bench/speed_canary.cpp
+# The probe is a CMake target (tests/bench), built beside the tests; DMMR_BIN
+# may name another build's tools, so the probe has its own variable.
+canary=${DMMR_CANARY:-build/bin/speed_canary}
+[ -x "$canary" ] || scripts/build.sh speed_canary
 variants=plain
 [ -n "${DMMR_BENCH_TUNABLES:-}" ] && variants="plain tunables"
 for r in $(seq 1 "$reps"); do
   for n in $counts; do
     for v in $variants; do
       tag=$v-c$n-r$r
-      "$out/speed_canary" probe 600 >"$out/$tag.canary" &
+      "$canary" probe 600 >"$out/$tag.canary" &
       probe=$!
       tun=""
       [ "$v" = tunables ] && tun=$DMMR_BENCH_TUNABLES

@@ -235,7 +235,8 @@ def method_section(meta):
         "(other work may have shared the machine).",
         *([f"- **Repeats:** each dmmr-render configuration ran {meta['repeats']} times, in rounds (each round "
            "runs every configuration once, so that a slow spell of a shared machine falls on several "
-           "configurations, not on all of one's runs); every figure is that of the run with the median summed client cost (the lower middle one of an "
+           "configurations, not on all of one's runs); every figure is that of the run with the median "
+           "summed client cost (the lower middle one of an "
            "even count), every run is compared with the reference, and the scaling section lists each run's "
            "cost and frame times."] if int(meta.get("repeats", 1) or 1) > 1 else []),
         accuracy_line(meta), ""])
@@ -370,8 +371,8 @@ def kernel_table(scenes):
                 continue
             shown = True
             cpu = sum(c["vis_cpu_ms"] + c["render_cpu_ms"] for c in r["per_client"])
-            sys_ms = sum(c.get("sys_ms", 0) for c in r["per_client"])
-            faults = sum(c.get("faults_mean", 0) for c in r["per_client"])
+            sys_ms = sum(c["sys_ms"] for c in r["per_client"])
+            faults = sum(c["faults_mean"] for c in r["per_client"])
             lines.append(f"| {s['scene']} | {r['clients']} | {f(cpu)} | {f(sys_ms)} | "
                          f"{pct(sys_ms / cpu) if cpu > 0 else '-'} | {faults:,.0f} | "
                          f"{f(r.get('scheduled_efficiency'), '{:.2f}')} | "
