@@ -95,6 +95,13 @@ int main(int argc, char** argv) {
                         "ran above the clients' mean gets smaller shares of the next frames until "
                         "it has caught up, as frames in flight let it) or off; never changes a "
                         "pixel");
+  std::string unseen = "hidden";
+  app.add_option("--unseen", unseen,
+                 "frustum division: how an object weighs that came into view in frames no "
+                 "client has reported on yet: hidden (as if culled lately; the default), "
+                 "drawn (as if drawn lately) or learnt (as drawn, times the fraction of such "
+                 "objects that were drawn lately); never changes a pixel")
+      ->check(CLI::IsMember({"drawn", "hidden", "learnt"}));
   dmmr::addSwitchOption(app, "--cost-grid", &s.cost_grid,
                         "frustum division: on (the weights are corrected, cell by cell of the "
                         "screen, by where the clients' measured time went in past frames; with "
@@ -252,6 +259,9 @@ int main(int argc, char** argv) {
   }
   s.visible_weights = weights == "visible" || weights == "fitted";
   s.fitted_weights = weights == "fitted";
+  s.unseen = unseen == "drawn"    ? dmmr::FramePlanner::Unseen::Drawn
+             : unseen == "learnt" ? dmmr::FramePlanner::Unseen::Learnt
+                                  : dmmr::FramePlanner::Unseen::Hidden;
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");

@@ -9,12 +9,65 @@
 namespace dmmr {
 
 FramePlanner::FramePlanner(const Scene& scene)
-    : scene_(scene), drawn_in_(new std::atomic<uint32_t>[scene.objects.size()]) {
+    : scene_(scene),
+      drawn_in_(new std::atomic<uint32_t>[scene.objects.size()]),
+      in_view_(new std::atomic<uint32_t>[scene.objects.size()]),
+      entered_(new std::atomic<uint32_t>[scene.objects.size()]) {
   boxes_.reserve(scene.objects.size());
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     boxes_.push_back({tightBox(scene.objects[i]), scene.objects[i].weight});
     drawn_in_[i].store(0, std::memory_order_relaxed);
+    in_view_[i].store(0, std::memory_order_relaxed);
+    entered_[i].store(0, std::memory_order_relaxed);
   }
+}
+
+void FramePlanner::noteInView(const std::vector<uint32_t>& visible) const {
+  const uint32_t now = frame_ + 1;
+  if (now != last_planned_) {  // not the same frame planned again
+    prev_planned_ = last_planned_;
+    last_planned_ = now;
+  }
+  const uint32_t latest = latest_drawn_.load(std::memory_order_relaxed);
+  if (unseen_ == Unseen::Learnt) {
+    // Resolve the objects whose first frame in view has been reported on and
+    // has a later frame reported too (so that every client's part of it is
+    // in): drawn or not in that frame.
+    unseen_drawn_count_ *= kUnseenMemory;
+    unseen_count_ *= kUnseenMemory;
+    size_t kept = 0;
+    for (const auto& [o, entered] : unseen_pending_) {
+      if (entered < latest) {
+        unseen_count_ += 1;
+        if (drawn_in_[o].load(std::memory_order_relaxed) >= entered) unseen_drawn_count_ += 1;
+      } else {
+        unseen_pending_[kept++] = {o, entered};
+      }
+    }
+    unseen_pending_.resize(kept);
+    if (unseen_count_ > 0) unseen_p_ = unseen_drawn_count_ / unseen_count_;
+  }
+  for (uint32_t o : visible) {
+    uint32_t v = in_view_[o].load(std::memory_order_relaxed);
+    if (v == now) continue;
+    // In view in the previous plan too: the same run goes on.
+    if (v == 0 || v != prev_planned_) {
+      entered_[o].store(now, std::memory_order_relaxed);
+      // Bounded: without reports (no feedback) nothing is ever resolved.
+      if (unseen_ == Unseen::Learnt && unseen_pending_.size() < (size_t(1) << 22))
+        unseen_pending_.push_back({o, now});
+    }
+    in_view_[o].store(now, std::memory_order_relaxed);
+  }
+}
+
+double FramePlanner::drawnFraction(uint32_t o) const {
+  if (drawnRecently(o)) return 1;
+  // Came into view after the latest frame a client reported on: untested.
+  if (unseen_ == Unseen::Hidden ||
+      entered_[o].load(std::memory_order_relaxed) <= latest_drawn_.load(std::memory_order_relaxed))
+    return 0;
+  return unseen_ == Unseen::Drawn ? 1 : unseen_p_;
 }
 
 void FramePlanner::reportDrawn(uint32_t frame, const std::vector<uint32_t>& objects) {
@@ -152,11 +205,11 @@ bool FramePlanner::drawnRecently(uint32_t o) const {
 uint64_t FramePlanner::weightOf(uint32_t o, const CostModel& model) const {
   uint64_t tris = boxes_[o].weight;
   if (!feedback_.load(std::memory_order_relaxed)) return tris;
-  bool recent = drawnRecently(o);
+  const double q = drawnFraction(o);
   if (model.fitted)
-    return units(model.per_tested +
-                 (recent ? model.per_drawn + model.per_triangle * double(tris) : 0.0));
-  return recent ? tris : std::min(tris, kHiddenWeight);
+    return units(model.per_tested + q * (model.per_drawn + model.per_triangle * double(tris)));
+  if (q == 1) return tris;
+  return std::max(std::min(tris, kHiddenWeight), uint64_t(std::llround(q * double(tris))));
 }
 
 std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& visible,
@@ -176,7 +229,7 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
       [&](size_t k, Footprint* f) {
         uint32_t o = visible[k];
         if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
-        if (fill > 0 && drawnRecently(o)) f->fill = fill;
+        if (fill > 0) f->fill = fill * drawnFraction(o);
         if (!grid.factor.empty()) {
           double factor = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
           f->weight = uint64_t(std::llround(double(f->weight) * factor));
@@ -205,7 +258,7 @@ RegionForecast FramePlanner::forecast(const Camera& camera, int width, int heigh
   std::vector<uint32_t> lately;
   if (feedback_.load(std::memory_order_relaxed))
     for (uint32_t o : region.objects)
-      if (o < boxes_.size() && drawnRecently(o)) {
+      if (o < boxes_.size() && drawnFraction(o) >= 0.5) {
         lately.push_back(o);
         f.triangles_lately += boxes_[o].weight;
       }
@@ -246,6 +299,7 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
   auto t0 = Clock::now();
   std::vector<uint32_t> visible =
       cull(camera, &plan.objects_in_frustum, &plan.triangles_in_frustum);
+  noteInView(visible);
   auto t1 = Clock::now();
   plan.grid = gridFor(width, height);
   double spawned = 0;

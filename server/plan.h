@@ -123,6 +123,21 @@ class FramePlanner {
   static constexpr uint32_t kHintFrames = 2;
   static constexpr uint32_t kSeenFrames = 8;
   static constexpr uint64_t kHiddenWeight = 1;
+  // Objects no client has reported on since they came into view (they came
+  // into view in the frames in flight): nobody has tested them yet.
+  //   Hidden: they weigh as hidden (culled lately), as before any prior.
+  //   Drawn:  they weigh as if drawn lately.
+  //   Learnt: they weigh as drawn times the fraction of the objects that came
+  //           into view lately and were drawn once reported on
+  //           (unseenDrawnFraction).
+  // Moves split lines only: never changes a pixel.
+  enum class Unseen { Hidden, Drawn, Learnt };
+  void setUnseen(Unseen u) { unseen_ = u; }
+  // Learnt: of the objects that came into view, the fraction drawn in the
+  // frame they came into view, once that frame was reported; each plan
+  // decays the counts by kUnseenMemory. 1 before any such object is reported.
+  double unseenDrawnFraction() const { return unseen_p_; }
+  static constexpr double kUnseenMemory = 0.9;
 
   // Fitted weights (--weights fitted): each finished frame's per-client work
   // and time; the planner keeps the last kCostFrames frames' samples, fits
@@ -164,7 +179,9 @@ class FramePlanner {
   double fillOf(const Camera& camera, int width, int height, Rect region,
                 const std::vector<uint32_t>& drawn) const;
   // The forecast for `region` of the frame being planned (planningFrame),
-  // by the rule the weights use (drawn in the last kSeenFrames frames).
+  // by the rule the weights use (drawn in the last kSeenFrames frames; an
+  // object not yet reported on since it came into view counts when the
+  // Unseen setting gives it at least half a drawn object's weight).
   RegionForecast forecast(const Camera& camera, int width, int height, const Region& region) const;
 
  private:
@@ -185,6 +202,12 @@ class FramePlanner {
   };
   uint64_t weightOf(uint32_t object, const CostModel& model) const;
   bool drawnRecently(uint32_t object) const;  // in the last kSeenFrames frames
+  // How much of a drawn object's weight an object gets: 1 if drawnRecently;
+  // for one in view only since after the latest reported frame, by the
+  // Unseen setting (0, 1 or the learnt fraction); otherwise 0.
+  double drawnFraction(uint32_t object) const;
+  // Records which objects are in view in the frame being planned (frame_).
+  void noteInView(const std::vector<uint32_t>& visible) const;
   // Frustum culling: the objects in view, ascending; fills the counts.
   std::vector<uint32_t> cull(const Camera& camera, uint64_t* objects, uint64_t* triangles) const;
   const Scene& scene_;
@@ -192,6 +215,16 @@ class FramePlanner {
   // Per object: 1 + the last frame a client drew it (0: never). Relaxed
   // atomics: these are hints, read while the assembler writes them.
   std::unique_ptr<std::atomic<uint32_t>[]> drawn_in_;
+  // Per object: 1 + the latest frame planned with it in the frustum, and 1 +
+  // the first frame of that run of consecutive plans (0: never). Written by
+  // the planning thread in plan(), read by the footprint threads it starts.
+  std::unique_ptr<std::atomic<uint32_t>[]> in_view_, entered_;
+  mutable uint32_t last_planned_ = 0, prev_planned_ = 0;  // 1 + frame: the latest two plans
+  Unseen unseen_ = Unseen::Hidden;
+  // Learnt: objects that came into view, not yet reported on (object, 1 +
+  // the frame it came into view), and the decayed counts of those resolved.
+  mutable std::vector<std::pair<uint32_t, uint32_t>> unseen_pending_;
+  mutable double unseen_drawn_count_ = 0, unseen_count_ = 0, unseen_p_ = 1;
   std::atomic<bool> feedback_{false};
   std::atomic<uint32_t> latest_drawn_{0};  // 1 + the latest frame reported
   uint32_t frame_ = 0;

@@ -718,6 +718,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   // Only frames in flight let a client catch up: with one, every frame waits
   // for its slowest client, and shares that lean against the past unbalance it.
   planner.setCatchUp(opts.catch_up && opts.in_flight > 1);
+  planner.setUnseen(opts.unseen);
   Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
                       hub.get(), division_log.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);

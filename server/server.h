@@ -7,6 +7,7 @@
 
 #include "camera.h"
 #include "mpi_comm.h"
+#include "plan.h"
 #include "serve.h"
 #include "tiles.h"
 
@@ -44,6 +45,9 @@ struct ServerOptions {
   // time ran above the clients' mean gets smaller shares until it has caught
   // up (FramePlanner::setCatchUp).
   bool catch_up = true;
+  // How objects weigh that came into view in frames no client has reported
+  // on yet (FramePlanner::setUnseen).
+  FramePlanner::Unseen unseen = FramePlanner::Unseen::Hidden;
   // A client that sends nothing for this long while it owes a sub-frame has
   // died or hangs: the server names it and aborts the job (frames already
   // assembled stay on disk). Generous by default: a first frame that loads

@@ -373,6 +373,132 @@ TEST(FramePlanner, FramesInFlightPayPartOfTheDebt) {
   EXPECT_EQ(planner.shares(3), measured);
 }
 
+// The objects in `camera`'s frustum, as the planner culls them.
+std::vector<uint32_t> inFrustum(const Scene& scene, const Camera& camera) {
+  std::vector<uint32_t> visible;
+  CullStats cs;
+  cullObjects(scene.skeleton, scene.objects, frustumPlanes(camera), &visible, &cs);
+  return visible;
+}
+
+// Of the objects a forecast counts as drawn lately in some region, how many
+// (each counted once).
+size_t expectedDrawn(const FramePlanner& planner, const Camera& camera, const FramePlan& plan) {
+  std::vector<uint32_t> objects;
+  for (const Region& r : plan.regions)
+    for (uint32_t o : r.objects) {
+      Region one{r.rect, {o}, 0};
+      if (planner.forecast(camera, 256, 256, one).drawn_lately == 1) objects.push_back(o);
+    }
+  std::sort(objects.begin(), objects.end());
+  return size_t(std::unique(objects.begin(), objects.end()) - objects.begin());
+}
+
+// --unseen drawn: an object that came into view after the latest frame the
+// clients reported on has not been tested by anyone, so it weighs as drawn;
+// one that was in view in a reported frame and not drawn is hidden. Off, both
+// weigh as hidden.
+TEST(FramePlanner, ObjectsComingIntoViewWeighAsDrawnUntilAClientReportsOnThem) {
+  Rng rng(37);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera corner = topDownCamera();  // low over one corner: a few objects in view
+  corner.eye = {0, 12, 0};
+  corner.fovy_deg = 30;
+  const Camera all = topDownCamera();
+  const std::vector<uint32_t> seen = inFrustum(scene, corner), later = inFrustum(scene, all);
+  ASSERT_GT(seen.size(), 0u);
+  ASSERT_GT(later.size(), seen.size() + 20);
+  for (bool prior : {false, true}) {
+    FramePlanner planner(scene);
+    planner.setUnseen(prior ? FramePlanner::Unseen::Drawn : FramePlanner::Unseen::Hidden);
+    for (uint32_t f = 0; f < 3; ++f) {  // three frames over the corner, frame 0 reported
+      planner.planningFrame(f);
+      planner.plan(corner, 256, 256, 2);
+    }
+    planner.reportDrawn(0, {});  // every object in view at frame 0 was hidden
+    planner.planningFrame(3);    // the camera pulls back: the whole grid in view
+    FramePlan wide = planner.plan(all, 256, 256, 2);
+    size_t in_regions = 0;  // of the objects new in view, those in some region
+    for (uint32_t o : later) {
+      if (std::binary_search(seen.begin(), seen.end(), o)) continue;
+      for (const Region& r : wide.regions)
+        if (std::binary_search(r.objects.begin(), r.objects.end(), o)) {
+          ++in_regions;
+          break;
+        }
+    }
+    EXPECT_EQ(expectedDrawn(planner, all, wide), prior ? in_regions : 0u) << prior;
+    // Frames 1 and 2 reported: the corner was in view then too, so it is
+    // still known hidden; the rest is still untested.
+    planner.reportDrawn(2, {});
+    planner.planningFrame(4);
+    EXPECT_EQ(expectedDrawn(planner, all, planner.plan(all, 256, 256, 2)), prior ? in_regions : 0u);
+    // Frame 3 reported, nothing drawn: every object has now been tested.
+    planner.reportDrawn(3, {});
+    planner.planningFrame(5);
+    EXPECT_EQ(expectedDrawn(planner, all, planner.plan(all, 256, 256, 2)), 0u) << prior;
+    // Out of view and back: untested again until reported.
+    planner.planningFrame(6);
+    planner.plan(corner, 256, 256, 2);
+    planner.planningFrame(7);
+    EXPECT_EQ(expectedDrawn(planner, all, planner.plan(all, 256, 256, 2)), prior ? in_regions : 0u);
+  }
+}
+
+// --unseen learnt: the fraction of the objects that came into view which
+// were drawn in that first frame, once a later frame is reported.
+TEST(FramePlanner, LearnsTheFractionOfObjectsComingIntoViewThatAreDrawn) {
+  Rng rng(38);
+  Scene scene = gridScene(rng, 10, 10);
+  Camera corner = topDownCamera();
+  corner.eye = {0, 12, 0};
+  corner.fovy_deg = 30;
+  const Camera all = topDownCamera();
+  const std::vector<uint32_t> seen = inFrustum(scene, corner), later = inFrustum(scene, all);
+  std::vector<uint32_t> fresh, drawn;  // new in view at frame 3; every third of them drawn
+  for (uint32_t o : later)
+    if (!std::binary_search(seen.begin(), seen.end(), o)) fresh.push_back(o);
+  for (size_t k = 0; k < fresh.size(); k += 3) drawn.push_back(fresh[k]);
+  ASSERT_GT(fresh.size(), 20u);
+  FramePlanner planner(scene);
+  planner.setUnseen(FramePlanner::Unseen::Learnt);
+  for (uint32_t f = 0; f < 3; ++f) {
+    planner.planningFrame(f);
+    planner.plan(corner, 256, 256, 2);
+  }
+  planner.reportDrawn(0, {});
+  planner.planningFrame(3);
+  planner.plan(all, 256, 256, 2);
+  EXPECT_EQ(planner.unseenDrawnFraction(), 1.0);  // nothing resolved yet: frame 0 is the latest
+  planner.reportDrawn(3, drawn);
+  planner.reportDrawn(4, {});
+  planner.planningFrame(5);
+  planner.plan(all, 256, 256, 2);
+  // The corner's objects (in view from frame 0, not drawn) and the fresh ones.
+  const double p = double(drawn.size()) / double(seen.size() + fresh.size());
+  EXPECT_DOUBLE_EQ(planner.unseenDrawnFraction(), p);
+  planner.planningFrame(6);  // nothing new resolved: the counts decay alike
+  planner.plan(all, 256, 256, 2);
+  EXPECT_DOUBLE_EQ(planner.unseenDrawnFraction(), p);
+  // An object coming into view now weighs that fraction of its triangles
+  // (visible weights), not all of them and not kHiddenWeight: out of view
+  // and back, the fresh objects are untested again.
+  planner.planningFrame(7);
+  planner.plan(corner, 256, 256, 2);
+  planner.planningFrame(8);
+  FramePlan back = planner.plan(all, 256, 256, 1);
+  uint64_t expected = 0;
+  for (uint32_t o : back.regions[0].objects) {
+    uint64_t tris = scene.objects[o].weight;
+    bool fresh_o = std::binary_search(fresh.begin(), fresh.end(), o);
+    bool drawn_o = std::binary_search(drawn.begin(), drawn.end(), o);
+    expected += drawn_o   ? tris
+                : fresh_o ? std::max<uint64_t>(1, uint64_t(std::llround(p * double(tris))))
+                          : 1;  // the corner: in view since frame 0, hidden
+  }
+  EXPECT_EQ(back.regions[0].weight, expected);
+}
+
 TEST(FramePlanner, HintsAreTheObjectsDrawnInTheLatestReportedFrames) {
   Rng rng(36);
   Scene scene = gridScene(rng, 4, 4);
