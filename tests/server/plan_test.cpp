@@ -381,6 +381,14 @@ std::vector<uint32_t> inFrustum(const Scene& scene, const Camera& camera) {
   return visible;
 }
 
+// Low over one corner of gridScene, looking down: a few objects in view.
+Camera cornerCamera() {
+  Camera c = topDownCamera();
+  c.eye = {0, 12, 0};
+  c.fovy_deg = 30;
+  return c;
+}
+
 // Of the objects a forecast counts as drawn lately in some region, how many
 // (each counted once).
 size_t expectedDrawn(const FramePlanner& planner, const Camera& camera, const FramePlan& plan) {
@@ -401,9 +409,7 @@ size_t expectedDrawn(const FramePlanner& planner, const Camera& camera, const Fr
 TEST(FramePlanner, ObjectsComingIntoViewWeighAsDrawnUntilAClientReportsOnThem) {
   Rng rng(37);
   Scene scene = gridScene(rng, 10, 10);
-  Camera corner = topDownCamera();  // low over one corner: a few objects in view
-  corner.eye = {0, 12, 0};
-  corner.fovy_deg = 30;
+  const Camera corner = cornerCamera();
   const Camera all = topDownCamera();
   const std::vector<uint32_t> seen = inFrustum(scene, corner), later = inFrustum(scene, all);
   ASSERT_GT(seen.size(), 0u);
@@ -450,9 +456,7 @@ TEST(FramePlanner, ObjectsComingIntoViewWeighAsDrawnUntilAClientReportsOnThem) {
 TEST(FramePlanner, LearnsTheFractionOfObjectsComingIntoViewThatAreDrawn) {
   Rng rng(38);
   Scene scene = gridScene(rng, 10, 10);
-  Camera corner = topDownCamera();
-  corner.eye = {0, 12, 0};
-  corner.fovy_deg = 30;
+  const Camera corner = cornerCamera();
   const Camera all = topDownCamera();
   const std::vector<uint32_t> seen = inFrustum(scene, corner), later = inFrustum(scene, all);
   std::vector<uint32_t> fresh, drawn;  // new in view at frame 3; every third of them drawn
