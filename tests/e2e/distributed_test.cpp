@@ -602,6 +602,28 @@ TEST(Balance, TheCostGridLearnsFromMeasuredTimesAndFramesStayExact) {
   }
 }
 
+// --unseen drawn and learnt (FramePlanner::setUnseen): objects coming into
+// view weigh more, which moves split lines and never a pixel. 3 clients along
+// the long path, which turns objects into view; every frame stays exact. What
+// it does to time is in docs/benchmarks.md ("Objects coming into view").
+TEST(Balance, UnseenObjectsWeighedAsDrawnKeepFramesExact) {
+  for (const char* unseen : {"drawn", "learnt"}) {
+    std::string out = longPath().dir / (std::string("unseen-") + unseen);
+    int status = 0;
+    std::string log = test::runCapture("LP_NUM_THREADS=0 timeout 120 " + test::mpirun(4) +
+                                           " -x LP_NUM_THREADS " + test::tool("dmmr-render") +
+                                           " --no-progress --width 320 --height 240 --unseen " +
+                                           unseen + " --scene " + longPath().scene +
+                                           " --walkthrough " + longPath().path + " --out " + out,
+                                       &status);
+    ASSERT_EQ(status, 0) << log;
+    std::vector<FrameDiff> diffs = compareDirectories(longPath().reference, out);
+    EXPECT_FALSE(diffs.empty());
+    for (const FrameDiff& d : diffs)
+      EXPECT_EQ(d.diff.differing_pixels, 0) << unseen << " " << d.name;
+  }
+}
+
 // --division-log: one row per client and frame, whose client side is what the
 // stats CSV says that client did, and whose forecast counts the region's list
 // and, once clients have reported, what they drew lately.
