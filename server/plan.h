@@ -206,7 +206,8 @@ class FramePlanner {
   // for one in view only since after the latest reported frame, by the
   // Unseen setting (0, 1 or the learnt fraction); otherwise 0.
   double drawnFraction(uint32_t object) const;
-  // Records which objects are in view in the frame being planned (frame_).
+  // Records which objects are in view in the frame being planned (frame_);
+  // plan() calls it unless the Unseen setting is Hidden.
   void noteInView(const std::vector<uint32_t>& visible) const;
   // Frustum culling: the objects in view, ascending; fills the counts.
   std::vector<uint32_t> cull(const Camera& camera, uint64_t* objects, uint64_t* triangles) const;

@@ -389,6 +389,14 @@ Camera cornerCamera() {
   return c;
 }
 
+// Plans frames 0..frames-1 with `camera`, 2 clients, nothing reported.
+void planFramesOver(FramePlanner& planner, const Camera& camera, uint32_t frames) {
+  for (uint32_t f = 0; f < frames; ++f) {
+    planner.planningFrame(f);
+    planner.plan(camera, 256, 256, 2);
+  }
+}
+
 // Of the objects a forecast counts as drawn lately in some region, how many
 // (each counted once).
 size_t expectedDrawn(const FramePlanner& planner, const Camera& camera, const FramePlan& plan) {
@@ -417,12 +425,9 @@ TEST(FramePlanner, ObjectsComingIntoViewWeighAsDrawnUntilAClientReportsOnThem) {
   for (bool prior : {false, true}) {
     FramePlanner planner(scene);
     planner.setUnseen(prior ? FramePlanner::Unseen::Drawn : FramePlanner::Unseen::Hidden);
-    for (uint32_t f = 0; f < 3; ++f) {  // three frames over the corner, frame 0 reported
-      planner.planningFrame(f);
-      planner.plan(corner, 256, 256, 2);
-    }
-    planner.reportDrawn(0, {});  // every object in view at frame 0 was hidden
-    planner.planningFrame(3);    // the camera pulls back: the whole grid in view
+    planFramesOver(planner, corner, 3);  // three frames over the corner, frame 0 reported
+    planner.reportDrawn(0, {});          // every object in view at frame 0 was hidden
+    planner.planningFrame(3);            // the camera pulls back: the whole grid in view
     FramePlan wide = planner.plan(all, 256, 256, 2);
     size_t in_regions = 0;  // of the objects new in view, those in some region
     for (uint32_t o : later) {
@@ -466,10 +471,7 @@ TEST(FramePlanner, LearnsTheFractionOfObjectsComingIntoViewThatAreDrawn) {
   ASSERT_GT(fresh.size(), 20u);
   FramePlanner planner(scene);
   planner.setUnseen(FramePlanner::Unseen::Learnt);
-  for (uint32_t f = 0; f < 3; ++f) {
-    planner.planningFrame(f);
-    planner.plan(corner, 256, 256, 2);
-  }
+  planFramesOver(planner, corner, 3);
   planner.reportDrawn(0, {});
   planner.planningFrame(3);
   planner.plan(all, 256, 256, 2);
