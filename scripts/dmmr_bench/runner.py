@@ -1,9 +1,11 @@
 """Generates (or reuses) the suite's scenes and runs every configuration."""
+import atexit
 import os
 import resource
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -91,6 +93,12 @@ class Runner:
         lp = self.run_cfg.get("lp_num_threads")
         if lp:
             self.env["LP_NUM_THREADS"] = str(lp)
+        # Each suite its own Open MPI session directory: 4.1 creates
+        # <TMPDIR>/ompi.<host>.<uid> with a racy mkdir, so jobs started at once
+        # (a suite beside the test suite) can fail (open-mpi/ompi#8510).
+        session = tempfile.mkdtemp(prefix="dmmr-bench-mpi-")
+        atexit.register(shutil.rmtree, session, True)
+        self.env["TMPDIR"] = session
         self.mpi = ["mpirun", "--oversubscribe", "--bind-to", "none"]
         if os.geteuid() == 0:
             self.mpi.append("--allow-run-as-root")

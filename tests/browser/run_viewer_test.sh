@@ -82,7 +82,10 @@ echo "== a 20k-triangle plant in $work"
 "$bin/dmmr-scenegen" plant --seed 1 --triangles 20000 --geodes 500 -o "$work/plant.osgb" --frames 2
 "$bin/dmmr-preprocess" "$work/plant.osgb" -o "$work/scene"
 
-mpi=(mpirun --oversubscribe --bind-to none -np $((clients + 1)))
+# Its own Open MPI session directory: jobs started at once under one TMPDIR
+# can race to create it (open-mpi/ompi#8510), as tests/support explains.
+mkdir -p "$work/mpi"
+mpi=(env TMPDIR="$work/mpi" mpirun --oversubscribe --bind-to none -np $((clients + 1)))
 [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
 # Sanitizer builds' settings reach every rank, as in tests/support.
 for v in ASAN_OPTIONS LSAN_OPTIONS UBSAN_OPTIONS TSAN_OPTIONS; do

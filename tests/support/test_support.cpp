@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <stdexcept>
 
 namespace dmmr::test {
 
@@ -36,8 +37,33 @@ std::string tool(const std::string& name) {
   return std::string(DMMR_BIN_DIR) + "/" + name;
 }
 
+std::string mpiSessionBase() {
+  // One parent per test process, removed when it exits; a fresh child per
+  // launch. Open MPI 4.1 creates <TMPDIR>/ompi.<host>.<uid> with a racy
+  // mkdir, so two mpirun jobs starting at once under one TMPDIR can fail
+  // with "A call to mkdir was unable to create the desired directory ...
+  // File exists" (open-mpi/ompi#8510; seen in CI with ctest -j2).
+  static const std::string parent = [] {
+    std::string dir = std::filesystem::temp_directory_path().string() + "/dmmr-mpi-" +
+                      std::to_string(::getpid());
+    std::filesystem::create_directories(dir);
+    std::atexit([] {
+      std::error_code ec;
+      std::filesystem::remove_all(std::filesystem::temp_directory_path().string() +
+                                      "/dmmr-mpi-" + std::to_string(::getpid()),
+                                  ec);
+    });
+    return dir;
+  }();
+  std::string tmpl = parent + "/XXXXXX";
+  if (!::mkdtemp(tmpl.data()))
+    throw std::runtime_error("test_support: cannot create a directory under " + parent);
+  return tmpl;
+}
+
 std::string mpirun(int np) {
-  std::string cmd = "mpirun --oversubscribe --bind-to none -np " + std::to_string(np);
+  std::string cmd = "env TMPDIR=" + mpiSessionBase() +
+                    " mpirun --oversubscribe --bind-to none -np " + std::to_string(np);
   if (::geteuid() == 0) cmd += " --allow-run-as-root";
   // The sanitizer builds' settings (suppressions, halt_on_error, leak
   // checks: tests/sanitizers/) go to every rank, wherever it runs.

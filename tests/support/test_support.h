@@ -45,8 +45,13 @@ std::string tool(const std::string& name);
 // "mpirun -np N" with the flags this machine needs (--oversubscribe,
 // --bind-to none so that a client's GL threads are not pinned to one core,
 // and --allow-run-as-root when running as root), exporting the sanitizers'
-// *SAN_OPTIONS to the ranks when they are set.
+// *SAN_OPTIONS to the ranks when they are set. Each call's job gets its own
+// Open MPI session directory (TMPDIR from mpiSessionBase), so that jobs
+// started at once do not race to create the same one.
 std::string mpirun(int np);
+// A fresh directory, removed when the test process exits, for one mpirun
+// job's session files.
+std::string mpiSessionBase();
 // `text` with every character that is not a letter or digit dropped: a
 // test-name and file-name part made from command-line options.
 std::string slug(const std::string& text);

@@ -1,6 +1,6 @@
 // The strict stats reader (test_support.h readCsv): every test that reads
 // stats columns relies on it failing, never reading 0, when a column is
-// missing or a row is malformed.
+// missing or a row is malformed. Also: each mpirun job's own session dir.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -81,4 +81,20 @@ TEST(Columns, BuiltValuesReadStrictlyToo) {
   EXPECT_EQ(sums["c1_gpu_hits"].first, 3);
   std::string e = test::errorOf([&] { (void)sums["c1_gpu_misses"]; });
   EXPECT_NE(e.find("sums of stats.csv: no column \"c1_gpu_misses\""), std::string::npos) << e;
+}
+
+TEST(Mpirun, EachJobGetsItsOwnSessionDirectory) {
+  // Open MPI 4.1's racy mkdir of <TMPDIR>/ompi.<host>.<uid> failed a CI run
+  // when two jobs started at once; each launch must name its own TMPDIR.
+  auto tmpdirOf = [](const std::string& cmd) {
+    size_t at = cmd.find("TMPDIR=");
+    EXPECT_NE(at, std::string::npos) << cmd;
+    if (at == std::string::npos) return std::string();
+    at += 7;
+    return cmd.substr(at, cmd.find(' ', at) - at);
+  };
+  std::string a = tmpdirOf(test::mpirun(2)), b = tmpdirOf(test::mpirun(3));
+  EXPECT_NE(a, b);
+  EXPECT_TRUE(std::filesystem::is_directory(a)) << a;
+  EXPECT_TRUE(std::filesystem::is_directory(b)) << b;
 }
