@@ -103,12 +103,13 @@ void addGpuStats(ClientStats& st, const GpuCacheStats& before, const GpuCacheSta
 // One GL context with the shared drawing code and its GPU cache level.
 struct GlStage {
   GlStage(const Scene& scene, HostCache& host, const ContextOptions& ctx, const ViewOptions& view,
-          const CacheOptions& cache, int64_t flush_triangles)
+          const CacheOptions& cache, int64_t flush_triangles, int triangle_cull)
       : context(createContext(ctx)),
         renderer(context->gl(), view.width, view.height),
         backend(renderer),
         meshes(scene, host, backend, cache.gpu_budget, cache.eviction) {
     renderer.setFlushEvery(flushTrianglesFor(context->gl(), flush_triangles));
+    renderer.setTriangleCull(triangleCullFor(context->gl(), triangle_cull));
   }
   std::unique_ptr<GlContext> context;
   Renderer renderer;
@@ -1012,7 +1013,7 @@ class VisibilityStage {
     // jobs on.
     if (opts_.method != VisibilityMethod::Off && opts_.stages != StageMode::Fused) {
       gl_ = std::make_unique<GlStage>(scene, host, opts.visibility_context, opts.view, opts.cache,
-                                      opts.flush_triangles);
+                                      opts.flush_triangles, opts.triangle_cull);
       culler_ = std::make_unique<Culler>(scene, opts_, *gl_);
       if (!opts.stage_turns.empty()) turns_ = std::make_unique<StageTurns>(opts.stage_turns);
     }
@@ -1127,7 +1128,7 @@ class RenderStage {
       ray_ = std::make_unique<RayStage>(scene, host, opts);
     } else
       gl_ = std::make_unique<GlStage>(scene, host, opts.render_context, opts.view, opts.cache,
-                                      opts.flush_triangles);
+                                      opts.flush_triangles, opts.triangle_cull);
     if (!opts.raytrace && opts.visibility.method != VisibilityMethod::Off &&
         opts.visibility.stages != StageMode::Split)
       culler_ = std::make_unique<Culler>(scene, opts.visibility, *gl_);

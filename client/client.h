@@ -28,6 +28,9 @@ struct ClientOptions {
   // Flush the GL stages' drawing every this many triangles (Renderer::
   // setFlushEvery; 0: never; -1: the driver's default, defaultFlushTriangles).
   int64_t flush_triangles = -1;
+  // Exact triangle culling in the GL stages (Renderer::setTriangleCull;
+  // -1: the driver's default, defaultTriangleCull; 0 off; 1 on).
+  int triangle_cull = -1;
   int rank = 0;  // set by runClient, for log lines
   // Benchmark mode: when set, every GL stage holds an exclusive lock on this
   // file while it works on a job (stage_turns.h), so stages run one at a time.

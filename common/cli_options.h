@@ -65,6 +65,18 @@ inline void addFlushOption(CLI::App& app, int64_t* triangles) {
       });
 }
 
+// --triangle-cull auto|on|off into *mode (-1, 1, 0): Renderer::setTriangleCull.
+inline void addTriangleCullOption(CLI::App& app, int* mode) {
+  std::string fallback = *mode < 0 ? "auto" : *mode ? "on" : "off";
+  app.add_option_function<std::string>(
+         "--triangle-cull",
+         [mode](const std::string& v) { *mode = v == "auto" ? -1 : v == "on" ? 1 : 0; },
+         "drop, before each draw of a dense object, the triangles that cover no pixel centre "
+         "of the region (auto: on with llvmpipe and softpipe, off elsewhere; default " +
+             fallback + "); never changes a pixel")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+}
+
 // --config FILE: a run config (TOML or INI) with the options' long names as
 // keys; the command line overrides it. Unknown keys are errors, not
 // silently ignored settings.

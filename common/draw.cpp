@@ -289,6 +289,8 @@ Renderer::Renderer(const GlApi& gl, int width, int height)
   gl_.Viewport(0, 0, width_, height_);
   gl_.PixelStorei(GL_PACK_ALIGNMENT, 1);
   gl_.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  gl_.GetIntegerv(GL_SUBPIXEL_BITS, &subpixel_bits_);
+  gl_.GenBuffers(1, &stream_);
   gl_.check("renderer setup");
 }
 
@@ -303,6 +305,7 @@ Renderer::~Renderer() {
   gl_.DeleteBuffers(2, box_buffers_);
   gl_.DeleteVertexArrays(1, &box_vao_);
   gl_.DeleteBuffers(1, &batch_buffer_);
+  gl_.DeleteBuffers(1, &stream_);
   gl_.DeleteVertexArrays(1, &batch_vao_);
   gl_.DeleteRenderbuffers(1, &color_rb_);
   gl_.DeleteRenderbuffers(1, &depth_rb_);
@@ -313,6 +316,7 @@ GpuMesh Renderer::upload(const GeometryData& g) {
   GpuMesh m;
   m.submeshes = g.submeshes;
   m.triangles = g.triangleCount();
+  m.vertices = g.vertexCount();
   gl_.GenVertexArrays(1, &m.vao);
   gl_.BindVertexArray(m.vao);
   gl_.GenBuffers(5, m.buffers);
@@ -386,6 +390,7 @@ void Renderer::beginFrame(const Camera& camera, const Rect& region, Rgb bg) {
   gl_.BindFramebuffer(GL_FRAMEBUFFER, fbo_);
   gl_.Viewport(0, 0, width_, height_);
   gl_.Scissor(region.x, region.y, region.w, region.h);
+  scissor_ = region;
   gl_.DepthMask(GL_TRUE);
   gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   gl_.DepthFunc(GL_GREATER);
@@ -627,13 +632,20 @@ uint64_t Renderer::drawDepth(const GpuMesh& mesh, const Mat4d& object_to_world, 
   gl_.UniformMatrix4fv(u_id_mv_, 1, GL_FALSE, mvf);
   setDepthBound(u_id_bound_, bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds);
   gl_.BindVertexArray(mesh.vao);
-  uint64_t indices = 0;
-  auto drawRange = [&](uint32_t first, uint32_t count) { indices += drawIndices(first, count); };
+  ranges_.clear();
   if (lod && mesh.lod_count > 0)
-    drawRange(mesh.lod_first, mesh.lod_count);
+    ranges_.push_back({0, mesh.lod_first, mesh.lod_count});
   else
     for (size_t i = 0; i < mesh.submeshes.size(); ++i)
-      forEachRange(mesh.submeshes[i], i, parts, drawRange);
+      forEachRange(mesh.submeshes[i], i, parts, [&](uint32_t first, uint32_t count) {
+        ranges_.push_back({i, first, count});
+      });
+  uint64_t indices = 0;
+  for (const IndexRange& r : ranges_) indices += r.count;
+  bool culled = cullRanges(mesh, object_to_world, bounds, &ranges_);
+  for (const IndexRange& r : ranges_)
+    if (r.count > 0) drawIndices(r.first, r.count);
+  if (culled) restoreElements(mesh);
   gl_.BindVertexArray(0);
   return indices / 3;
 }
@@ -652,7 +664,15 @@ uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const
   float planes[9];
   depthBoundPlanes(bounds.valid() ? depthBoundBox(bounds, camera_, height_) : bounds, planes);
   gl_.BindVertexArray(mesh.vao);
+  ranges_.clear();
+  for (size_t i = 0; i < mesh.submeshes.size(); ++i)
+    forEachRange(mesh.submeshes[i], i, parts, [&](uint32_t first, uint32_t count) {
+      ranges_.push_back({i, first, count});
+    });
   uint64_t indices = 0;
+  for (const IndexRange& r : ranges_) indices += r.count;
+  bool culled = cullRanges(mesh, object_to_world, bounds, &ranges_);
+  size_t next = 0;  // ranges_ are in submesh order
   for (size_t i = 0; i < mesh.submeshes.size(); ++i) {
     const SubMesh& s = mesh.submeshes[i];
     bool tex = s.texture >= 0 && size_t(s.texture) < textures.size();
@@ -668,11 +688,98 @@ uint64_t Renderer::draw(const GpuMesh& mesh, const Mat4d& object_to_world, const
       gl_.ActiveTexture(GL_TEXTURE0);
       gl_.BindTexture(GL_TEXTURE_2D, textures[size_t(s.texture)]);
     }
-    forEachRange(s, i, parts,
-                 [&](uint32_t first, uint32_t count) { indices += drawIndices(first, count); });
+    for (; next < ranges_.size() && ranges_[next].submesh == i; ++next)
+      if (ranges_[next].count > 0) drawIndices(ranges_[next].first, ranges_[next].count);
   }
+  if (culled) restoreElements(mesh);
   gl_.BindVertexArray(0);
   return indices / 3;
+}
+
+bool Renderer::cullRanges(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                          std::vector<IndexRange>* ranges) {
+  if (!triangle_cull_ || mesh.vertices == 0) return false;
+  uint64_t selected = 0;
+  for (const IndexRange& r : *ranges) selected += r.count / 3;
+  if (selected < kCullMinTriangles) return false;
+  const Mat4d mv = cameraRelative(object_to_world);
+  const Mat4d proj = projectionMatrix(camera_);
+  // Worth it only where triangles are small: the box's window rectangle
+  // (within the scissor) per selected triangle. A box reaching behind the
+  // eye is near, so its triangles are not small.
+  if (bounds.valid()) {
+    const Mat4d to_clip = proj * viewRotation(camera_);
+    double lx = 1e300, ly = 1e300, hx = -1e300, hy = -1e300;
+    for (int k = 0; k < 8; ++k) {
+      Vec3d c{(k & 1 ? bounds.hi : bounds.lo).x - camera_.eye.x,
+              (k & 2 ? bounds.hi : bounds.lo).y - camera_.eye.y,
+              (k & 4 ? bounds.hi : bounds.lo).z - camera_.eye.z};
+      double w = to_clip.at(3, 0) * c.x + to_clip.at(3, 1) * c.y + to_clip.at(3, 2) * c.z;
+      if (!(w > 0)) return false;
+      double x = (to_clip.at(0, 0) * c.x + to_clip.at(0, 1) * c.y + to_clip.at(0, 2) * c.z) / w;
+      double y = (to_clip.at(1, 0) * c.x + to_clip.at(1, 1) * c.y + to_clip.at(1, 2) * c.z) / w;
+      x = (x + 1) * 0.5 * width_;
+      y = (y + 1) * 0.5 * height_;
+      lx = std::min(lx, x), hx = std::max(hx, x), ly = std::min(ly, y), hy = std::max(hy, y);
+    }
+    double w = std::min(hx, double(scissor_.x1())) - std::max(lx, double(scissor_.x));
+    double h = std::min(hy, double(scissor_.y1())) - std::max(ly, double(scissor_.y));
+    double area = std::max(0.0, w) * std::max(0.0, h);
+    if (area > kCullPixelsPerTriangle * double(selected)) return false;
+  }
+  // The vertices as the draw will place them.
+  gl_.BindBuffer(GL_COPY_READ_BUFFER, mesh.buffers[0]);
+  const auto* positions = static_cast<const float*>(gl_.MapBufferRange(
+      GL_COPY_READ_BUFFER, 0, GLsizeiptr(mesh.vertices * 12), GL_MAP_READ_BIT));
+  if (!positions) {
+    gl_.check("mapping positions for triangle culling");
+    return false;
+  }
+  WindowTransform t{mv, proj, width_, height_, subpixel_bits_};
+  projectVertices(positions, mesh.vertices, t, &window_);
+  gl_.UnmapBuffer(GL_COPY_READ_BUFFER);
+  // The kept triangles of every range, appended to the stream.
+  const size_t bytes = size_t(selected) * 12;
+  if (stream_at_ + bytes > stream_capacity_) {
+    stream_capacity_ = std::max(stream_capacity_, std::max<size_t>(bytes, size_t(4) << 20));
+    gl_.BindBuffer(GL_COPY_WRITE_BUFFER, stream_);
+    gl_.BufferData(GL_COPY_WRITE_BUFFER, GLsizeiptr(stream_capacity_), nullptr, GL_STREAM_DRAW);
+    stream_at_ = 0;
+  }
+  gl_.BindBuffer(GL_COPY_READ_BUFFER, mesh.buffers[4]);
+  const auto* indices = static_cast<const uint32_t*>(
+      gl_.MapBufferRange(GL_COPY_READ_BUFFER, 0, GLsizeiptr((mesh.lod_first + mesh.lod_count) * 4),
+                         GL_MAP_READ_BIT));
+  gl_.BindBuffer(GL_COPY_WRITE_BUFFER, stream_);
+  // Unsynchronised: this range of the stream was never drawn from since it
+  // was last orphaned.
+  auto* out = static_cast<uint32_t*>(gl_.MapBufferRange(
+      GL_COPY_WRITE_BUFFER, GLintptr(stream_at_), GLsizeiptr(bytes),
+      GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_RANGE_BIT | GL_MAP_UNSYNCHRONIZED_BIT));
+  if (!indices || !out) {
+    if (indices) gl_.UnmapBuffer(GL_COPY_READ_BUFFER);
+    if (out) gl_.UnmapBuffer(GL_COPY_WRITE_BUFFER);
+    gl_.check("mapping indices for triangle culling");
+    return false;
+  }
+  size_t at = 0;
+  for (IndexRange& r : *ranges) {
+    size_t kept = keepCoveringTriangles(indices + r.first, r.count, window_, scissor_, out + at);
+    triangles_culled_ += (r.count - kept) / 3;
+    r.first = uint32_t(stream_at_ / 4 + at);
+    r.count = uint32_t(kept);
+    at += kept;
+  }
+  gl_.UnmapBuffer(GL_COPY_WRITE_BUFFER);
+  gl_.UnmapBuffer(GL_COPY_READ_BUFFER);
+  stream_at_ += at * 4;
+  gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, stream_);  // the bound VAO's
+  gl_.check("triangle culling");
+  return true;
+}
+
+void Renderer::restoreElements(const GpuMesh& mesh) {
+  gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, mesh.buffers[4]);
 }
 
 void Renderer::readPixels(const Rect& region, std::vector<uint8_t>* rgba) {
@@ -694,6 +801,7 @@ void Renderer::readDepth(const Rect& region, std::vector<float>* depth) {
 
 void Renderer::beginRedraw(const Rect& rect, Rgb bg) {
   gl_.Scissor(rect.x, rect.y, rect.w, rect.h);
+  scissor_ = rect;
   gl_.DepthMask(GL_TRUE);
   gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   gl_.ClearColor(bg.r, bg.g, bg.b, 1.f);
@@ -738,10 +846,19 @@ void Renderer::maskColor(bool masked) {
   if (!masked) gl_.UseProgram(program_);
 }
 
-uint64_t defaultFlushTriangles(const GlApi& gl) {
+namespace {
+bool cpuRasteriser(const GlApi& gl) {
   const char* name = reinterpret_cast<const char*>(gl.GetString(GL_RENDERER));
-  if (!name) return 0;
-  return std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe") ? kFlushTrianglesCpu : 0;
+  return name && (std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe"));
+}
+}  // namespace
+
+uint64_t defaultFlushTriangles(const GlApi& gl) {
+  return cpuRasteriser(gl) ? kFlushTrianglesCpu : 0;
+}
+
+bool defaultTriangleCull(const GlApi& gl) {
+  return cpuRasteriser(gl);
 }
 
 void Renderer::submitted(uint64_t indices) {

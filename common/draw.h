@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "camera.h"
+#include "coverage.h"
 #include "formats.h"
 #include "gl_api.h"
 
@@ -28,6 +29,7 @@ struct GpuMesh {
   uint32_t lod_first = 0, lod_count = 0;
   uint64_t bytes = 0;  // GPU memory held (buffers only)
   uint64_t triangles = 0;
+  uint64_t vertices = 0;
 };
 
 // GPU memory Renderer::upload takes for `g` (its buffers), known before the
@@ -81,6 +83,15 @@ struct Rgb {
 // batches its own submissions).
 inline constexpr uint64_t kFlushTrianglesCpu = 4096;
 uint64_t defaultFlushTriangles(const GlApi& gl);
+// Whether triangle culling (Renderer::setTriangleCull) is on by default for
+// this context's driver: on a CPU rasteriser (llvmpipe, softpipe), which
+// sets up and bins every triangle, even those covering no pixel centre, at
+// a cost above the test's; off elsewhere (a GPU discards them in hardware).
+bool defaultTriangleCull(const GlApi& gl);
+// A --triangle-cull setting (-1: auto, 0: off, 1: on) as setTriangleCull takes it.
+inline bool triangleCullFor(const GlApi& gl, int option) {
+  return option < 0 ? defaultTriangleCull(gl) : option != 0;
+}
 // A --flush-triangles setting (-1: auto) as setFlushEvery takes it.
 inline uint64_t flushTrianglesFor(const GlApi& gl, int64_t option) {
   return option < 0 ? defaultFlushTriangles(gl) : uint64_t(option);
@@ -187,6 +198,22 @@ class Renderer {
     next_flush_ = triangles;
   }
   uint64_t flushEvery() const { return flush_every_; }
+
+  // Exact triangle culling (coverage.h): with it on, draw() and drawDepth()
+  // drop, before the draw, the triangles of a dense object that cover no
+  // pixel centre of the scissor rectangle, which changes no pixel, depth or
+  // query count. An object is culled so when its selected triangles are at
+  // least kCullMinTriangles and its box covers under
+  // kCullPixelsPerTriangle pixels of the rectangle per triangle; others are
+  // drawn as they are. The meshes' positions and indices are read back from
+  // their buffers (a mapping, no copy on a CPU rasteriser). The draws'
+  // returned triangle counts stay those selected; trianglesCulled() counts
+  // what the test dropped.
+  static constexpr uint64_t kCullMinTriangles = 256;
+  static constexpr double kCullPixelsPerTriangle = 4;
+  void setTriangleCull(bool on) { triangle_cull_ = on; }
+  bool triangleCull() const { return triangle_cull_; }
+  uint64_t trianglesCulled() const { return triangles_culled_; }  // since construction
   uint64_t flushes() const { return flushes_; }  // setFlushEvery's, since construction
 
   // draw() calls (one a submesh) a frame takes before it waits for the
@@ -220,6 +247,31 @@ class Renderer {
   DrawSlot* slots_ = nullptr;  // persistently mapped
   size_t next_slot_ = 0;
   uint64_t unflushed_ = 0, flush_every_ = 0, next_flush_ = 0, flushes_ = 0;
+  // Triangle culling: the current scissor rectangle, the rasteriser's
+  // sub-pixel bits, a stream of culled index lists (appended to, orphaned
+  // when full) and the projected vertices of the object being culled.
+  bool triangle_cull_ = false;
+  uint64_t triangles_culled_ = 0;
+  Rect scissor_;
+  int subpixel_bits_ = 4;
+  GLuint stream_ = 0;
+  size_t stream_capacity_ = 0, stream_at_ = 0;  // bytes
+  WindowVertices window_;
+  // One draw call's index range: `count` indices from `first` of submesh
+  // `submesh` (or of the bound element buffer).
+  struct IndexRange {
+    size_t submesh;
+    uint32_t first, count;
+  };
+  // Replaces `ranges` of `mesh` (drawn with `object_to_world`, bounded by
+  // `bounds`) by their culled copies in the stream and binds the stream as
+  // the bound VAO's element buffer, returning true; returns false, changing
+  // nothing, when the object is not worth culling. After the draws,
+  // restoreElements(mesh) rebinds the mesh's own indices.
+  bool cullRanges(const GpuMesh& mesh, const Mat4d& object_to_world, const Box3d& bounds,
+                  std::vector<IndexRange>* ranges);
+  void restoreElements(const GpuMesh& mesh);
+  std::vector<IndexRange> ranges_;
   // A wait drained llvmpipe: the next flush comes after flush_every_ again.
   void drained() {
     unflushed_ = 0;

@@ -115,6 +115,7 @@ int main(int argc, char** argv) {
   app.add_flag("--potential-occluders-every-frame", c.visibility.potential_every_frame,
                "draw the preprocessor's occluders every frame, not only without a previous list");
   dmmr::addFlushOption(app, &c.flush_triangles);
+  dmmr::addTriangleCullOption(app, &c.triangle_cull);
   app.add_option("--compress", codec, "sub-frame compression: lz4, zlib or none")
       ->check(CLI::IsMember({"lz4", "zlib", "none"}));
   app.add_flag("!--no-progress", s.progress, "do not print progress");
