@@ -70,7 +70,9 @@ inline void addTriangleCullOption(CLI::App& app, int* mode) {
   std::string fallback = *mode < 0 ? "auto" : *mode ? "on" : "off";
   app.add_option_function<std::string>(
          "--triangle-cull",
-         [mode](const std::string& v) { *mode = v == "auto" ? -1 : v == "on" ? 1 : 0; },
+         [mode](const std::string& v) { *mode = v == "auto" ? -1
+                                                : v == "on" ? 1
+                                                            : 0; },
          "drop, before each draw of a dense object, the triangles that cover no pixel centre "
          "of the region (auto: on with llvmpipe and softpipe, off elsewhere; default " +
              fallback + "); never changes a pixel")

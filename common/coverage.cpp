@@ -94,8 +94,10 @@ size_t keepCoveringTriangles(const uint32_t* indices, size_t count, const Window
       const double hy = std::max({v.y[a], v.y[b], v.y[c]}) + r;
       // The first and last centre columns and rows within the widened box
       // and the scissor; written so that NaN (an infinite radius) keeps.
-      const double cx0 = std::max(std::ceil(lx - 0.5), x0), cx1 = std::min(std::floor(hx - 0.5), x1);
-      const double cy0 = std::max(std::ceil(ly - 0.5), y0), cy1 = std::min(std::floor(hy - 0.5), y1);
+      const double cx0 = std::max(std::ceil(lx - 0.5), x0),
+                   cx1 = std::min(std::floor(hx - 0.5), x1);
+      const double cy0 = std::max(std::ceil(ly - 0.5), y0),
+                   cy1 = std::min(std::floor(hy - 0.5), y1);
       keep = !(cx0 > cx1 || cy0 > cy1);
     }
     if (keep) {

@@ -729,8 +729,8 @@ bool Renderer::cullRanges(const GpuMesh& mesh, const Mat4d& object_to_world, con
   }
   // The vertices as the draw will place them.
   gl_.BindBuffer(GL_COPY_READ_BUFFER, mesh.buffers[0]);
-  const auto* positions = static_cast<const float*>(gl_.MapBufferRange(
-      GL_COPY_READ_BUFFER, 0, GLsizeiptr(mesh.vertices * 12), GL_MAP_READ_BIT));
+  const auto* positions = static_cast<const float*>(
+      gl_.MapBufferRange(GL_COPY_READ_BUFFER, 0, GLsizeiptr(mesh.vertices * 12), GL_MAP_READ_BIT));
   if (!positions) {
     gl_.check("mapping positions for triangle culling");
     return false;
@@ -747,9 +747,8 @@ bool Renderer::cullRanges(const GpuMesh& mesh, const Mat4d& object_to_world, con
     stream_at_ = 0;
   }
   gl_.BindBuffer(GL_COPY_READ_BUFFER, mesh.buffers[4]);
-  const auto* indices = static_cast<const uint32_t*>(
-      gl_.MapBufferRange(GL_COPY_READ_BUFFER, 0, GLsizeiptr((mesh.lod_first + mesh.lod_count) * 4),
-                         GL_MAP_READ_BIT));
+  const auto* indices = static_cast<const uint32_t*>(gl_.MapBufferRange(
+      GL_COPY_READ_BUFFER, 0, GLsizeiptr((mesh.lod_first + mesh.lod_count) * 4), GL_MAP_READ_BIT));
   gl_.BindBuffer(GL_COPY_WRITE_BUFFER, stream_);
   // Unsynchronised: this range of the stream was never drawn from since it
   // was last orphaned.

@@ -28,15 +28,16 @@ Mat4d objectToEye(const Camera& cam, const Mat4d& object_to_world) {
 
 // One way a GPU may compute a vertex's window position.
 struct Arith {
-  bool reverse = false;  // summation order
-  bool fma = false;      // contracted multiply-adds
-  bool truncate = false; // snapping by truncation instead of rounding
+  bool reverse = false;   // summation order
+  bool fma = false;       // contracted multiply-adds
+  bool truncate = false;  // snapping by truncation instead of rounding
 };
 
 float dot4(const float* row, const float* v, Arith a) {
   if (a.fma) {
     float s = 0;
-    for (int k = 0; k < 4; ++k) s = std::fma(row[a.reverse ? 3 - k : k], v[a.reverse ? 3 - k : k], s);
+    for (int k = 0; k < 4; ++k)
+      s = std::fma(row[a.reverse ? 3 - k : k], v[a.reverse ? 3 - k : k], s);
     return s;
   }
   float s = 0;
@@ -75,16 +76,14 @@ bool coversCentre(const int64_t x[3], const int64_t y[3], int bits, Rect scissor
   int64_t lx = std::min({x[0], x[1], x[2]}), hx = std::max({x[0], x[1], x[2]});
   int64_t ly = std::min({y[0], y[1], y[2]}), hy = std::max({y[0], y[1], y[2]});
   // Centres (i + 1/2) in the box, within the scissor.
-  int64_t i0 = std::max<int64_t>(scissor.x, (lx - half + one - 1) >= 0
-                                                 ? (lx - half + one - 1) / one
-                                                 : -((half - lx) / one));
-  int64_t i1 = std::min<int64_t>(scissor.x1() - 1, (hx - half) >= 0 ? (hx - half) / one
-                                                                     : -((half - hx + one - 1) / one));
-  int64_t j0 = std::max<int64_t>(scissor.y, (ly - half + one - 1) >= 0
-                                                 ? (ly - half + one - 1) / one
-                                                 : -((half - ly) / one));
-  int64_t j1 = std::min<int64_t>(scissor.y1() - 1, (hy - half) >= 0 ? (hy - half) / one
-                                                                     : -((half - hy + one - 1) / one));
+  int64_t i0 = std::max<int64_t>(
+      scissor.x, (lx - half + one - 1) >= 0 ? (lx - half + one - 1) / one : -((half - lx) / one));
+  int64_t i1 = std::min<int64_t>(
+      scissor.x1() - 1, (hx - half) >= 0 ? (hx - half) / one : -((half - hx + one - 1) / one));
+  int64_t j0 = std::max<int64_t>(
+      scissor.y, (ly - half + one - 1) >= 0 ? (ly - half + one - 1) / one : -((half - ly) / one));
+  int64_t j1 = std::min<int64_t>(
+      scissor.y1() - 1, (hy - half) >= 0 ? (hy - half) / one : -((half - hy + one - 1) / one));
   for (int64_t j = j0; j <= j1; ++j)
     for (int64_t i = i0; i <= i1; ++i) {
       int64_t cx = i * one + half, cy = j * one + half;
@@ -162,8 +161,11 @@ Scenario randomScenario(std::mt19937_64& rng) {
 TEST(Coverage, NoDroppedTriangleCoversAPixelCentreUnderAnyFloatArithmetic) {
   std::mt19937_64 rng(20261205);
   uint64_t dropped = 0, uncovered = 0, total = 0;
-  const Arith ways[] = {{false, false, false}, {true, false, false}, {false, true, false},
-                        {true, true, true},    {false, false, true}};
+  const Arith ways[] = {{false, false, false},
+                        {true, false, false},
+                        {false, true, false},
+                        {true, true, true},
+                        {false, false, true}};
   for (int trial = 0; trial < 300; ++trial) {
     Scenario s = randomScenario(rng);
     Mat4d mv = objectToEye(s.cam, s.object_to_world), proj = projectionMatrix(s.cam);
@@ -257,9 +259,9 @@ TEST(Coverage, KeepsATriangleWithAVertexBehindTheEye) {
 }
 
 TEST(Coverage, KeepsATriangleWithAnIndexPastTheVertices) {
-  EXPECT_EQ(keptOf(triangle(at(10.1, 10.1), at(10.3, 10.1), at(10.1, 10.4)), {0, 0, 100, 100},
-                   {0, 1, 3}),
-            1u);
+  EXPECT_EQ(
+      keptOf(triangle(at(10.1, 10.1), at(10.3, 10.1), at(10.1, 10.4)), {0, 0, 100, 100}, {0, 1, 3}),
+      1u);
 }
 
 TEST(Coverage, KeepsATriangleWithANonFinitePosition) {

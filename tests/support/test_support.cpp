@@ -44,13 +44,13 @@ std::string mpiSessionBase() {
   // with "A call to mkdir was unable to create the desired directory ...
   // File exists" (open-mpi/ompi#8510; seen in CI with ctest -j2).
   static const std::string parent = [] {
-    std::string dir = std::filesystem::temp_directory_path().string() + "/dmmr-mpi-" +
-                      std::to_string(::getpid());
+    std::string dir =
+        std::filesystem::temp_directory_path().string() + "/dmmr-mpi-" + std::to_string(::getpid());
     std::filesystem::create_directories(dir);
     std::atexit([] {
       std::error_code ec;
-      std::filesystem::remove_all(std::filesystem::temp_directory_path().string() +
-                                      "/dmmr-mpi-" + std::to_string(::getpid()),
+      std::filesystem::remove_all(std::filesystem::temp_directory_path().string() + "/dmmr-mpi-" +
+                                      std::to_string(::getpid()),
                                   ec);
     });
     return dir;
