@@ -19,86 +19,118 @@ constexpr double kDot = 8 * kU;
 
 void projectVertices(const float* positions, size_t count, const WindowTransform& t,
                      WindowVertices* out) {
-  out->x.resize(count);
-  out->y.resize(count);
-  out->radius.resize(count);
-  const Mat4d& m = t.object_to_eye;
-  const Mat4d& p = t.projection;
+  out->resize(count);
+  double m[4][4], am[4][4];  // object to eye, by rows, and its magnitudes
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) {
+      m[r][c] = t.object_to_eye.at(r, c);
+      am[r][c] = std::fabs(m[r][c]);
+    }
+  double p[3][4], ap[3][4];  // the projection's x, y and w rows
+  const int rows[3] = {0, 1, 3};
+  for (int k = 0; k < 3; ++k)
+    for (int r = 0; r < 4; ++r) {
+      p[k][r] = t.projection.at(rows[k], r);
+      ap[k][r] = std::fabs(p[k][r]);
+    }
+  // A clip coordinate's error: its row's magnitudes times the eye errors
+  // (kDot times each eye row's sum of term magnitudes) carried through, plus
+  // its own dot product's rounding (kDot times its terms' magnitudes, each
+  // at most the eye row's sum plus its error): kDot (2 + kDot) times the
+  // projection row's magnitudes applied to the eye rows' sums.
+  const double k_clip = kDot * (2 + kDot);
   const double half_w = 0.5 * t.width, half_h = 0.5 * t.height;
   const double snap = std::ldexp(1.0, -std::max(0, t.subpixel_bits));
-  const double inf = std::numeric_limits<double>::infinity();
+  const float inf = std::numeric_limits<float>::infinity();
+  WindowVertex* o = out->data();
   for (size_t i = 0; i < count; ++i) {
-    const double v[3] = {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
-    // Eye position and, per row, the float error bound of the GPU's product.
-    double e[4], de[4];
+    const double x = positions[3 * i], y = positions[3 * i + 1], z = positions[3 * i + 2];
+    const double ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
+    double e[4], mag[4];
     for (int r = 0; r < 4; ++r) {
-      double sum = m.at(r, 3), mag = std::fabs(m.at(r, 3));
-      for (int c = 0; c < 3; ++c) {
-        sum += m.at(r, c) * v[c];
-        mag += std::fabs(m.at(r, c) * v[c]);
-      }
-      e[r] = sum;
-      de[r] = kDot * mag;
+      e[r] = m[r][0] * x + m[r][1] * y + m[r][2] * z + m[r][3];
+      mag[r] = am[r][0] * ax + am[r][1] * ay + am[r][2] * az + am[r][3];
     }
-    // Clip x, y, w, with the eye error carried through the projection.
     double c[3], dc[3];
-    const int rows[3] = {0, 1, 3};
     for (int k = 0; k < 3; ++k) {
-      double sum = 0, mag = 0, carried = 0;
-      for (int r = 0; r < 4; ++r) {
-        double a = p.at(rows[k], r);
-        sum += a * e[r];
-        mag += std::fabs(a) * (std::fabs(e[r]) + de[r]);
-        carried += std::fabs(a) * de[r];
-      }
-      c[k] = sum;
-      dc[k] = carried + kDot * mag;
+      c[k] = p[k][0] * e[0] + p[k][1] * e[1] + p[k][2] * e[2] + p[k][3] * e[3];
+      dc[k] =
+          k_clip * (ap[k][0] * mag[0] + ap[k][1] * mag[1] + ap[k][2] * mag[2] + ap[k][3] * mag[3]);
     }
     const double w = c[2], dw = dc[2];
-    if (!(w > 2 * dw) || !(w > 0) || !std::isfinite(w)) {
-      out->x[i] = out->y[i] = 0;
-      out->radius[i] = inf;
-      continue;
-    }
-    const double nx = c[0] / w, ny = c[1] / w;
+    const double inv = 1 / w, nx = c[0] * inv, ny = c[1] * inv;
+    const double anx = std::fabs(nx), any = std::fabs(ny);
     // The quotient's error from both operands' and its own rounding, then
     // the viewport transform's.
-    const double dnx = (dc[0] + std::fabs(nx) * dw) / (w - dw) + 2 * kU * std::fabs(nx);
-    const double dny = (dc[1] + std::fabs(ny) * dw) / (w - dw) + 2 * kU * std::fabs(ny);
-    const double dx = dnx * half_w + 4 * kU * (std::fabs(nx) + 1) * half_w;
-    const double dy = dny * half_h + 4 * kU * (std::fabs(ny) + 1) * half_h;
-    out->x[i] = (nx + 1) * half_w;
-    out->y[i] = (ny + 1) * half_h;
-    // Twice the bound, then a whole snapping step (rounding moves a vertex
-    // by half a step, truncation by up to one).
-    const double radius = 2 * std::max(dx, dy) + snap;
-    out->radius[i] = std::isfinite(out->x[i]) && std::isfinite(out->y[i]) ? radius : inf;
+    const double inv_low = 1 / (w - dw);
+    const double dnx = (dc[0] + anx * dw) * inv_low + 2 * kU * anx;
+    const double dny = (dc[1] + any * dw) * inv_low + 2 * kU * any;
+    const double dx = (dnx + 4 * kU * (anx + 1)) * half_w;
+    const double dy = (dny + 4 * kU * (any + 1)) * half_h;
+    const double wx = (nx + 1) * half_w, wy = (ny + 1) * half_h;
+    // Twice the bound, a whole snapping step (rounding moves a vertex by
+    // half a step, truncation by up to one), and the rounding of the
+    // position to float; the radius itself rounded up.
+    double radius = 2 * (dx < dy ? dy : dx) + snap + (std::fabs(wx) + std::fabs(wy)) * 0x1p-23;
+    radius *= 1 + 0x1p-20;
+    WindowVertex v{float(wx), float(wy), float(radius), 0.f};
+    // w > 2 dw is false for NaN too.
+    if (!(w > 2 * dw) || !std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.radius))
+      v = {0.f, 0.f, inf, 0.f};
+    o[i] = v;
   }
 }
+
+namespace {
+// floor(t) for |t| < 2^30 (a double's truncation of a positive value).
+inline int64_t floorSmall(double t) {
+  constexpr double k = 1 << 30;
+  return int64_t(t + k) - int64_t(k);
+}
+inline float minf(float a, float b) {
+  return b < a ? b : a;
+}
+inline float maxf(float a, float b) {
+  return a < b ? b : a;
+}
+inline float min3(float a, float b, float c) {
+  return minf(minf(a, b), c);
+}
+inline float max3(float a, float b, float c) {
+  return maxf(maxf(a, b), c);
+}
+}  // namespace
 
 size_t keepCoveringTriangles(const uint32_t* indices, size_t count, const WindowVertices& v,
                              Rect scissor, uint32_t* out) {
   const size_t n = v.size();
-  // Pixel centres i + 0.5 for columns i in [x0, x1], rows likewise.
-  const double x0 = scissor.x, x1 = double(scissor.x1()) - 1;
-  const double y0 = scissor.y, y1 = double(scissor.y1()) - 1;
+  // Pixel centres i + 0.5 for columns i in [x0, x1], rows likewise. A box
+  // is first clamped to a pixel beyond the scissor on each side, which
+  // keeps every centre it held there and the arithmetic small.
+  const int64_t x0 = scissor.x, x1 = int64_t(scissor.x) + scissor.w - 1;
+  const int64_t y0 = scissor.y, y1 = int64_t(scissor.y) + scissor.h - 1;
+  const float lox = float(x0 - 2), hix = float(x1 + 3), loy = float(y0 - 2), hiy = float(y1 + 3);
   size_t kept = 0;
   for (size_t t = 0; t + 2 < count; t += 3) {
     const uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
     bool keep = true;
     if (a < n && b < n && c < n) {
-      const double r = std::max({v.radius[a], v.radius[b], v.radius[c]});
-      const double lx = std::min({v.x[a], v.x[b], v.x[c]}) - r;
-      const double hx = std::max({v.x[a], v.x[b], v.x[c]}) + r;
-      const double ly = std::min({v.y[a], v.y[b], v.y[c]}) - r;
-      const double hy = std::max({v.y[a], v.y[b], v.y[c]}) + r;
-      // The first and last centre columns and rows within the widened box
-      // and the scissor; written so that NaN (an infinite radius) keeps.
-      const double cx0 = std::max(std::ceil(lx - 0.5), x0),
-                   cx1 = std::min(std::floor(hx - 0.5), x1);
-      const double cy0 = std::max(std::ceil(ly - 0.5), y0),
-                   cy1 = std::min(std::floor(hy - 0.5), y1);
-      keep = !(cx0 > cx1 || cy0 > cy1);
+      // By value, so that min and max compile to minss and maxss, not to
+      // branches on the data.
+      const WindowVertex va = v[a], vb = v[b], vc = v[c];
+      // Finite positions; a radius of +inf widens the box to the clamp.
+      const float r = max3(va.radius, vb.radius, vc.radius);
+      const float lx = maxf(min3(va.x, vb.x, vc.x) - r, lox);
+      const float hx = minf(max3(va.x, vb.x, vc.x) + r, hix);
+      const float ly = maxf(min3(va.y, vb.y, vc.y) - r, loy);
+      const float hy = minf(max3(va.y, vb.y, vc.y) + r, hiy);
+      // The first centre column at or right of lx: ceil(lx - 0.5); the last
+      // at or left of hx: floor(hx - 0.5). Computed in double: exact.
+      const int64_t cx0 = std::max(-floorSmall(0.5 - double(lx)), x0);
+      const int64_t cx1 = std::min(floorSmall(double(hx) - 0.5), x1);
+      const int64_t cy0 = std::max(-floorSmall(0.5 - double(ly)), y0);
+      const int64_t cy1 = std::min(floorSmall(double(hy) - 0.5), y1);
+      keep = cx0 <= cx1 && cy0 <= cy1;
     }
     if (keep) {
       out[kept] = a;

@@ -38,13 +38,14 @@ struct WindowTransform {
   int subpixel_bits = 4;  // GL_SUBPIXEL_BITS (the GL minimum is 4; llvmpipe has 8)
 };
 
-// Window positions of vertices (pixels, origin at the frame's bottom left)
-// and, per vertex, a radius within which the rasteriser's snapped position
-// lies; +inf where the vertex is not safely in front of the eye.
-struct WindowVertices {
-  std::vector<double> x, y, radius;
-  size_t size() const { return x.size(); }
+// A vertex's window position (pixels, origin at the frame's bottom left)
+// and a radius within which the rasteriser's snapped position lies (the
+// floats' own rounding included); +inf where the vertex is not safely in
+// front of the eye.
+struct WindowVertex {
+  float x = 0, y = 0, radius = 0, unused = 0;  // 16 bytes: one load a vertex
 };
+using WindowVertices = std::vector<WindowVertex>;
 
 // Projects `count` vertices (`positions`: x, y, z floats each) into `out`
 // (resized; its storage is reused between calls).
@@ -54,8 +55,9 @@ void projectVertices(const float* positions, size_t count, const WindowTransform
 // Copies to `out` the triangles of the list `indices[0, count)` (count a
 // multiple of 3) that can cover a pixel centre inside `scissor`, in their
 // order; returns how many indices it wrote. `out` holds `count` indices; it
-// may not overlap `indices`. A triangle with an index past the vertices,
-// a vertex of infinite radius or a non-finite position is kept.
+// may not overlap `indices`. A triangle with an index past the vertices or
+// a vertex of infinite radius (projectVertices gives non-finite positions
+// one) is kept. The scissor lies within 2^29 pixels of the origin.
 size_t keepCoveringTriangles(const uint32_t* indices, size_t count, const WindowVertices& v,
                              Rect scissor, uint32_t* out);
 

@@ -287,7 +287,7 @@ TEST(Coverage, KeepsTheOrderOfTheTrianglesKept) {
 
 TEST(Coverage, AFewerSubPixelBitsWidenTheRadius) {
   auto v8 = project(at(10.2, 10.2), 8), v4 = project(at(10.2, 10.2), 4);
-  EXPECT_GT(v4.radius[0], v8.radius[0]);
-  EXPECT_GE(v4.radius[0], 1.0 / 16);
-  EXPECT_LT(v8.radius[0], 1.0 / 64);
+  EXPECT_GT(v4[0].radius, v8[0].radius);
+  EXPECT_GE(v4[0].radius, 1.0 / 16);
+  EXPECT_LT(v8[0].radius, 1.0 / 64);
 }
