@@ -1161,6 +1161,7 @@ class RenderStage {
     GpuCacheStats gpu_before = gl_->meshes.stats();
     auto t0 = Clock::now();
     Renderer& r = gl_->renderer;
+    const uint64_t submitted0 = r.trianglesSubmitted();
     r.beginFrame(job.camera, job.region);
     auto draw = [&](uint32_t index, PartDraw parts) -> uint64_t {
       const ObjectBounds& o = scene_.objects[index];
@@ -1211,6 +1212,7 @@ class RenderStage {
     }
     const std::vector<uint32_t>& drawn = fused_culled ? fused.visible : v.visible;
     r.finish();
+    st.submitted = r.trianglesSubmitted() - submitted0;
     if (slow_ > 1) {  // DMMR_SLOW_CLIENT: spin (slow_ - 1) times the work so far
       double until = threadCpuMs() + (slow_ - 1) * (threadCpuMs() - cpu0);
       while (threadCpuMs() < until) {

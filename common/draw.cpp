@@ -862,6 +862,7 @@ bool defaultTriangleCull(const GlApi& gl) {
 
 void Renderer::submitted(uint64_t indices) {
   unflushed_ += indices / 3;
+  triangles_submitted_ += indices / 3;
   if (flush_every_ && unflushed_ >= next_flush_) {
     gl_.Flush();
     unflushed_ = 0;

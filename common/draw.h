@@ -214,6 +214,9 @@ class Renderer {
   void setTriangleCull(bool on) { triangle_cull_ = on; }
   bool triangleCull() const { return triangle_cull_; }
   uint64_t trianglesCulled() const { return triangles_culled_; }  // since construction
+  // Triangles handed to the GL by every draw (depth and colour passes, after
+  // the triangle cull), since construction: what the rasteriser set up.
+  uint64_t trianglesSubmitted() const { return triangles_submitted_; }
   uint64_t flushes() const { return flushes_; }  // setFlushEvery's, since construction
 
   // draw() calls (one a submesh) a frame takes before it waits for the
@@ -251,7 +254,7 @@ class Renderer {
   // sub-pixel bits, a stream of culled index lists (appended to, orphaned
   // when full) and the projected vertices of the object being culled.
   bool triangle_cull_ = false;
-  uint64_t triangles_culled_ = 0;
+  uint64_t triangles_culled_ = 0, triangles_submitted_ = 0;
   Rect scissor_;
   int subpixel_bits_ = 4;
   GLuint stream_ = 0;

@@ -94,9 +94,9 @@ void putSubFrame(ByteWriter& w, const SubFrame& s) {
         t.compress_ms, t.send_ms, t.vis_cpu_ms, t.render_cpu_ms, t.vis_sys_ms, t.render_sys_ms})
     w.f64(v);
   for (uint64_t v :
-       {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.bytes_raw, t.bytes_sent,
-        t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes, t.uncached, t.skipped,
-        t.gpu_resident, t.ram_resident, t.vis_faults, t.render_faults})
+       {t.objects, t.occluders, t.queried, t.visible, t.triangles, t.submitted, t.bytes_raw,
+        t.bytes_sent, t.gpu_hits, t.gpu_misses, t.ram_hits, t.ram_misses, t.disk_bytes, t.uncached,
+        t.skipped, t.gpu_resident, t.ram_resident, t.vis_faults, t.render_faults})
     w.u64(v);
   w.u64(s.data.size());
   w.array(s.data.data(), s.data.size());
@@ -119,9 +119,9 @@ SubFrame getSubFrame(ByteReader& r) {
                     &t.vis_sys_ms, &t.render_sys_ms})
     *v = r.f64("stats");
   for (uint64_t* v :
-       {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.bytes_raw, &t.bytes_sent,
-        &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses, &t.disk_bytes, &t.uncached,
-        &t.skipped, &t.gpu_resident, &t.ram_resident, &t.vis_faults, &t.render_faults})
+       {&t.objects, &t.occluders, &t.queried, &t.visible, &t.triangles, &t.submitted, &t.bytes_raw,
+        &t.bytes_sent, &t.gpu_hits, &t.gpu_misses, &t.ram_hits, &t.ram_misses, &t.disk_bytes,
+        &t.uncached, &t.skipped, &t.gpu_resident, &t.ram_resident, &t.vis_faults, &t.render_faults})
     *v = r.u64("stats");
   r.array(&s.data, r.u64("data size"), "data");
   r.array(&s.drawn, r.u32("drawn count"), "drawn objects");
@@ -181,6 +181,7 @@ void accumulate(ClientStats& a, const ClientStats& b) {
                       {&a.queried, b.queried},
                       {&a.visible, b.visible},
                       {&a.triangles, b.triangles},
+                      {&a.submitted, b.submitted},
                       {&a.bytes_raw, b.bytes_raw},
                       {&a.bytes_sent, b.bytes_sent},
                       {&a.gpu_hits, b.gpu_hits},

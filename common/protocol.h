@@ -62,6 +62,11 @@ struct ClientStats {
   uint64_t objects = 0;  // objects in the region's list from the server
   uint64_t occluders = 0, queried = 0, visible = 0;
   uint64_t triangles = 0;  // triangles drawn by the render stage
+  // Triangles the render stage handed to the GL, every pass (depth and
+  // colour) counted, after the triangle cull (Renderer::trianglesSubmitted):
+  // what the rasteriser set up, where `triangles` counts each drawn object's
+  // selected triangles once.
+  uint64_t submitted = 0;
   uint64_t bytes_raw = 0, bytes_sent = 0;
   // Geometry cache, this frame: hits and misses per level, bytes read from
   // disk, meshes too large for a level (used uncached), objects skipped for

@@ -8,11 +8,11 @@ namespace dmmr {
 
 namespace {
 
-constexpr int kTerms = 5;
+constexpr int kTerms = 6;
 using Row = std::array<double, kTerms>;
 
 Row termsOf(const CostSample& s) {
-  return {s.drawn, s.triangles, s.tested, s.pixels, s.fill};
+  return {s.drawn, s.triangles, s.tested, s.pixels, s.fill, s.raster};
 }
 
 // Solves the normal equations restricted to the terms in `mask` (Gaussian
@@ -70,13 +70,13 @@ double residual(const std::vector<Row>& x, const std::vector<double>& y, const R
 
 std::ostream& operator<<(std::ostream& os, const CostModel& m) {
   return os << "{drawn " << m.per_drawn << " ms, triangle " << m.per_triangle << " ms, tested "
-            << m.per_tested << " ms, pixel " << m.per_pixel << " ms, fill " << m.per_fill << " ms"
-            << (m.fitted ? "" : ", unfitted") << "}";
+            << m.per_tested << " ms, pixel " << m.per_pixel << " ms, fill " << m.per_fill
+            << " ms, raster " << m.per_raster << " ms" << (m.fitted ? "" : ", unfitted") << "}";
 }
 
 double predictMs(const CostModel& m, const CostSample& s) {
   return m.per_drawn * s.drawn + m.per_triangle * s.triangles + m.per_tested * s.tested +
-         m.per_pixel * s.pixels + m.per_fill * s.fill;
+         m.per_pixel * s.pixels + m.per_fill * s.fill + m.per_raster * s.raster;
 }
 
 CostModel fitCostModel(const std::vector<CostSample>& samples, const std::vector<double>& speeds) {
@@ -110,6 +110,7 @@ CostModel fitCostModel(const std::vector<CostSample>& samples, const std::vector
   out.per_tested = coef[2];
   out.per_pixel = coef[3];
   out.per_fill = coef[4];
+  out.per_raster = coef[5];
   out.fitted = true;
   return out;
 }

@@ -5,17 +5,26 @@
 // A client's work on a frame is modelled as
 //   ms = per_drawn * objects drawn + per_triangle * triangles drawn
 //      + per_tested * objects tested + per_pixel * pixels of its region
-//      + per_fill * fill,
+//      + per_fill * fill + per_raster * raster,
 // where fill is the pixels of the drawn objects' footprints inside its
 // region (overdraw counted: where a software rasteriser spends its time),
-// divided by the client's speed (1 for a typical client, 0.5 for one that
-// takes twice as long on the same work). The division then weighs an object
-// drawn lately per_drawn + per_triangle * triangles + per_tested, one hidden
-// lately per_tested, and every pixel per_pixel; a drawn object's fill weighs
-// per_fill per pixel of its footprint, spread over it (divide.h), so that
-// balanced weights mean balanced time, not only balanced triangles.
+// and raster the triangles the rasteriser is expected to set up: each drawn
+// object's triangles per footprint pixel, at most kRasterCap, times its
+// footprint's pixels inside the region. With the triangle cull (draw.h) an
+// object of many small triangles hands the GL only those that cover a pixel
+// centre, about one per pixel; an object of large triangles hands them all,
+// and only where its footprint meets the region (docs/benchmarks.md,
+// "Triangles the rasteriser sets up"). All of it divided by the client's
+// speed (1 for a typical client, 0.5 for one that takes twice as long on the
+// same work). The division then weighs an object drawn lately per_drawn +
+// per_triangle * triangles + per_tested, one hidden lately per_tested, and
+// every pixel per_pixel; a drawn object's fill and raster weigh per_fill +
+// per_raster * min(triangles / footprint pixels, kRasterCap) per pixel of its
+// footprint, spread over it (divide.h), so that balanced weights mean
+// balanced time, not only balanced triangles.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <ostream>
 #include <vector>
@@ -25,17 +34,29 @@ namespace dmmr {
 // One client's frame: its work and the milliseconds it took.
 struct CostSample {
   int client = 0;  // 0-based
-  double drawn = 0, triangles = 0, tested = 0, pixels = 0, fill = 0;
+  double drawn = 0, triangles = 0, tested = 0, pixels = 0, fill = 0, raster = 0;
   double ms = 0;
   friend bool operator==(const CostSample&, const CostSample&) = default;
 };
 
 struct CostModel {
-  double per_drawn = 0, per_triangle = 0, per_tested = 0, per_pixel = 0, per_fill = 0;  // ms each
-  bool fitted = false;  // false: too little or degenerate data; use triangles
+  double per_drawn = 0, per_triangle = 0, per_tested = 0, per_pixel = 0, per_fill = 0,
+         per_raster = 0;  // ms each
+  bool fitted = false;    // false: too little or degenerate data; use triangles
   friend bool operator==(const CostModel&, const CostModel&) = default;
 };
 std::ostream& operator<<(std::ostream& os, const CostModel& m);
+
+// The most triangles per footprint pixel a drawn object is expected to hand
+// the rasteriser (CostSample::raster): a pixel centre is covered by about one
+// front and one back triangle of a closed surface, and the box's footprint
+// is larger than the surface's, so 1 (fitted against the clients' submitted
+// triangles on skullmesh4: slope 1.03; docs/benchmarks.md).
+constexpr double kRasterCap = 1;
+// An object's expected rasterised triangles per pixel of its footprint.
+inline double rasterPerPixel(double triangles, double footprint_pixels) {
+  return footprint_pixels > 0 ? std::min(triangles / footprint_pixels, kRasterCap) : 0.0;
+}
 
 // The model's milliseconds for a sample's work at speed 1.
 double predictMs(const CostModel& m, const CostSample& s);

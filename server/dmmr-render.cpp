@@ -106,6 +106,11 @@ int main(int argc, char** argv) {
                         "frustum division: on (the weights are corrected, cell by cell of the "
                         "screen, by where the clients' measured time went in past frames; with "
                         "visible or fitted weights) or off; never changes a pixel");
+  app.add_option("--regions-per-client", s.regions_per_client,
+                 "frustum division into this many regions per client, each client's spread "
+                 "over the frame so that a stale forecast's error is shared; never changes a "
+                 "pixel (default 1)")
+      ->check(CLI::Range(1, 16));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')
@@ -266,6 +271,14 @@ int main(int argc, char** argv) {
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
+    return 1;
+  }
+  if (s.regions_per_client > 1 && s.cost_grid) {
+    if (!quiet)
+      std::fprintf(stderr,
+                   "dmmr-render: --cost-grid needs one region a client; it cannot be used with "
+                   "--regions-per-client %d\n",
+                   s.regions_per_client);
     return 1;
   }
   c.codec = dmmr::parseCodec(codec);

@@ -221,15 +221,20 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
   const Rect frame{0, 0, width, height};
   // Fill per footprint pixel, in the fitted units (not rounded: a pixel is a
   // few nanoseconds).
-  const double fill = model.fitted && feedback_.load(std::memory_order_relaxed)
-                          ? model.per_fill * kUnitsPerMs
-                          : 0.0;
+  const bool fitted = model.fitted && feedback_.load(std::memory_order_relaxed);
+  const double fill = fitted ? model.per_fill * kUnitsPerMs : 0.0;
+  const double raster = fitted ? model.per_raster * kUnitsPerMs : 0.0;
   return projectInSlices(
       visible.size(), footprintThreads(visible.size()),
       [&](size_t k, Footprint* f) {
         uint32_t o = visible[k];
         if (!project(boxes_[o].box, weightOf(o, model), o, f)) return false;
-        if (fill > 0) f->fill = fill * drawnFraction(o);
+        if (fill > 0 || raster > 0) {
+          double per_pixel = fill;
+          if (raster > 0)
+            per_pixel += raster * rasterPerPixel(double(boxes_[o].weight), overlapArea(*f, frame));
+          f->fill = per_pixel * drawnFraction(o);
+        }
         if (!grid.factor.empty()) {
           double factor = costGridFactor(grid, frame, f->x0, f->x1, f->y0, f->y1);
           f->weight = uint64_t(std::llround(double(f->weight) * factor));
@@ -249,6 +254,21 @@ double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect re
     if (o < boxes_.size() && project(boxes_[o].box, 0, o, &f)) pixels += overlapArea(f, region);
   }
   return pixels;
+}
+
+double FramePlanner::rasterOf(const Camera& camera, int width, int height, Rect region,
+                              const std::vector<uint32_t>& drawn) const {
+  FootprintProjector project(camera, width, height);
+  double tris = 0;
+  Footprint f;
+  const Rect frame{0, 0, width, height};
+  for (uint32_t o : drawn) {
+    if (o < boxes_.size() && project(boxes_[o].box, 0, o, &f)) {
+      tris +=
+          overlapArea(f, region) * rasterPerPixel(double(boxes_[o].weight), overlapArea(f, frame));
+    }
+  }
+  return tris;
 }
 
 RegionForecast FramePlanner::forecast(const Camera& camera, int width, int height,
@@ -292,7 +312,8 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 }
 }  // namespace
 
-FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients) const {
+FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients,
+                             int regions_per_client) const {
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
   // The CPU interval nested in the wall one (t0 first, t2 last), so that the
@@ -314,12 +335,19 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
     if (model_.fitted) costs.pixel_weight = model_.per_pixel * kUnitsPerMs;
     std::vector<double> factors;
     costs.speeds = sharesLocked(clients, &factors);  // empty before a fit: equal shares
+    if (!costs.speeds.empty() && regions_per_client > 1) {
+      // Each of a client's regions at its share: region j is client j % clients's.
+      std::vector<double> per_region;
+      for (int j = 0; j < clients * regions_per_client; ++j)
+        per_region.push_back(costs.speeds[size_t(regionClient(size_t(j), clients))]);
+      costs.speeds = std::move(per_region);
+    }
     if (!factors.empty()) {
       in_flight_[frame_] = std::move(factors);
       while (in_flight_.size() > kMaxInFlight) in_flight_.erase(in_flight_.begin());
     }
   }
-  plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients, costs);
+  plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients * regions_per_client, costs);
   for (const Region& r : plan.regions)
     plan.planned.push_back(double(r.weight) + costs.pixel_weight * double(r.rect.area()));
   plan.plan_cpu_ms = threadCpuMs() - c0 + spawned;

@@ -21,7 +21,9 @@
 namespace dmmr {
 
 struct FramePlan {
-  std::vector<Region> regions;  // one per client, tiling the frame
+  // `regions_per_client` per client, tiling the frame; region j goes to
+  // client j % clients (regionClient).
+  std::vector<Region> regions;
   uint64_t objects_in_frustum = 0;
   uint64_t triangles_in_frustum = 0;
   double cull_ms = 0;
@@ -36,6 +38,11 @@ struct FramePlan {
   std::vector<double> planned;
   CostGrid grid;  // the cost grid the footprints were weighed with (empty: none)
 };
+
+// The 0-based client region j of a FramePlan goes to.
+inline int regionClient(size_t j, int clients) {
+  return int(j % size_t(clients));
+}
 
 // What the server expects of one region at plan time, from what it knows
 // (FramePlanner::forecast): set beside what the client then reports, it shows
@@ -105,7 +112,16 @@ std::vector<Footprint> projectInSlices(size_t n, size_t threads, const Project& 
 class FramePlanner {
  public:
   explicit FramePlanner(const Scene& scene);
-  FramePlan plan(const Camera& camera, int width, int height, int clients) const;
+  // Divides the frame into clients * regions_per_client regions. With more
+  // than one region a client (--regions-per-client), the division's leaves
+  // are dealt round-robin: it splits the count in half at each level, so
+  // each run of `clients` consecutive leaves is one part of the frame, and
+  // every client gets one region of each such part. What a stale forecast
+  // gets wrong in one part of the frame (a copy that came near, a hidden
+  // area that opened) is then shared by all clients instead of falling on
+  // the one whose region it is; the price is more straddling objects.
+  FramePlan plan(const Camera& camera, int width, int height, int clients,
+                 int regions_per_client = 1) const;
   TilePlan planTiles(const Camera& camera, int width, int height, int tile_w, int tile_h) const;
 
   // Division weights from what the clients drew: an object drawn in one of
@@ -178,6 +194,11 @@ class FramePlanner {
   // (object indices) inside `region`, overlaps counted once per object.
   double fillOf(const Camera& camera, int width, int height, Rect region,
                 const std::vector<uint32_t>& drawn) const;
+  // A client's raster for CostSample: of `drawn`, each footprint's pixels
+  // inside `region` times rasterPerPixel(its triangles, its pixels in the
+  // frame).
+  double rasterOf(const Camera& camera, int width, int height, Rect region,
+                  const std::vector<uint32_t>& drawn) const;
   // The forecast for `region` of the frame being planned (planningFrame),
   // by the rule the weights use (drawn in the last kSeenFrames frames; an
   // object not yet reported on since it came into view counts when the

@@ -64,6 +64,7 @@ struct FrameRecord {
   std::vector<ClientStats> clients;       // per client, summed over its sub-frames
   std::vector<uint64_t> pixels;           // per client: pixels of its sub-frames
   std::vector<double> fill;               // per client: FramePlanner::fillOf its sub-frames
+  std::vector<double> raster;             // per client: FramePlanner::rasterOf its sub-frames
   std::vector<RegionCost> planned;        // per client (frustum division): region, planned weight
   CostGrid grid;                          // the cost grid the frame was planned with
   std::vector<RegionForecast> forecasts;  // per client, with --division-log
@@ -85,7 +86,8 @@ std::string statsHeader(int clients) {
           "readback_ms",   "compress_ms", "send_ms",       "bytes_raw",    "bytes_sent",
           "gpu_hits",      "gpu_misses",  "ram_hits",      "ram_misses",   "disk_bytes",
           "uncached",      "skipped",     "gpu_resident",  "ram_resident", "vis_cpu_ms",
-          "render_cpu_ms", "vis_sys_ms",  "render_sys_ms", "vis_faults",   "render_faults"})
+          "render_cpu_ms", "vis_sys_ms",  "render_sys_ms", "vis_faults",   "render_faults",
+          "submitted"})
       h += ",c" + std::to_string(k) + "_" + c;
   return h + "\n";
 }
@@ -94,7 +96,7 @@ std::string statsHeader(int clients) {
 // side (planned weight, forecast), then the client's (its CostSample).
 const char* const kDivisionLogHeader =
     "frame,client,planned,objects,drawn_lately,triangles_lately,fill_lately,pixels,tested,drawn,"
-    "triangles,fill,ms\n";
+    "triangles,fill,ms,raster,submitted\n";
 
 class Assembler {
  public:
@@ -126,6 +128,7 @@ class Assembler {
     rec.clients.resize(size_t(clients_));
     rec.pixels.resize(size_t(clients_));
     rec.fill.resize(size_t(clients_));
+    rec.raster.resize(size_t(clients_));
     rec.owed = std::move(owed);
     rec.expected = expected;
     std::lock_guard<std::mutex> lock(mu_);
@@ -313,9 +316,12 @@ class Assembler {
     rec->pixels[size_t(rank - 1)] += uint64_t(sf.region.area());
     if (planner_) {
       planner_->reportDrawn(sf.frame, sf.drawn);
-      if (opts_.fitted_weights)
+      if (opts_.fitted_weights) {
         rec->fill[size_t(rank - 1)] +=
             planner_->fillOf(rec->camera, rec->image.width, rec->image.height, sf.region, sf.drawn);
+        rec->raster[size_t(rank - 1)] += planner_->rasterOf(rec->camera, rec->image.width,
+                                                            rec->image.height, sf.region, sf.drawn);
+      }
     }
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
     bool complete;
@@ -369,7 +375,7 @@ class Assembler {
           << c.gpu_misses << "," << c.ram_hits << "," << c.ram_misses << "," << c.disk_bytes << ","
           << c.uncached << "," << c.skipped << "," << c.gpu_resident << "," << c.ram_resident << ","
           << c.vis_cpu_ms << "," << c.render_cpu_ms << "," << c.vis_sys_ms << "," << c.render_sys_ms
-          << "," << c.vis_faults << "," << c.render_faults;
+          << "," << c.vis_faults << "," << c.render_faults << "," << c.submitted;
     csv_.append(row.str() + "\n");  // after the frame's PNG: a row means its frame is on disk
     if (division_log_ && rec.forecasts.size() == rec.clients.size() &&
         rec.planned.size() == rec.clients.size())
@@ -398,7 +404,7 @@ class Assembler {
       rows << frame << "," << k + 1 << "," << rec.planned[k].planned << "," << f.objects << ","
            << f.drawn_lately << "," << f.triangles_lately << "," << f.fill_lately << "," << c.pixels
            << "," << c.tested << "," << c.drawn << "," << c.triangles << "," << c.fill << ","
-           << c.ms << "\n";
+           << c.ms << "," << c.raster << "," << rec.clients[k].submitted << "\n";
     }
     division_log_->append(rows.str());
   }
@@ -437,6 +443,7 @@ class Assembler {
       s.tested = double(c.queried);
       s.pixels = double(rec.pixels[k]);
       s.fill = rec.fill[k];
+      s.raster = rec.raster[k];
       s.ms = cpu ? c.vis_cpu_ms + c.render_cpu_ms
                  : c.prepare_ms + c.retrieve_ms + c.load_ms + c.render_ms + c.readback_ms +
                        c.compress_ms;
@@ -769,30 +776,46 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       // Each job, with the client it goes to (-1: the dispatcher decides).
       std::vector<std::pair<int, FrameJob>> jobs;
       if (balance == Balance::Frustum) {
-        FramePlan plan = planner.plan(cam, v.width, v.height, clients);
+        const int per = opts.regions_per_client;
+        FramePlan plan = planner.plan(cam, v.width, v.height, clients, per);
         rec.cull_ms = plan.cull_ms;
         rec.divide_ms = plan.divide_ms;
         rec.plan_cpu_ms = plan.plan_cpu_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
         rec.grid = std::move(plan.grid);
+        // Per client: its first region's rectangle (the cost grid's, which
+        // needs one region a client) and the weight of all its regions.
         for (int k = 0; k < clients; ++k)
-          rec.planned.push_back({plan.regions[size_t(k)].rect, plan.planned[size_t(k)], 0.0});
-        if (division_log)
-          for (const Region& r : plan.regions)
-            rec.forecasts.push_back(planner.forecast(cam, v.width, v.height, r));
-        for (int k = 0; k < clients; ++k) {
+          rec.planned.push_back({plan.regions[size_t(k)].rect, 0, 0});
+        for (size_t j = 0; j < plan.regions.size(); ++j)
+          rec.planned[size_t(regionClient(j, clients))].planned += plan.planned[j];
+        if (division_log) {
+          rec.forecasts.resize(size_t(clients));
+          for (size_t j = 0; j < plan.regions.size(); ++j) {
+            RegionForecast f = planner.forecast(cam, v.width, v.height, plan.regions[j]);
+            RegionForecast& to = rec.forecasts[size_t(regionClient(j, clients))];
+            to.objects += f.objects;
+            to.drawn_lately += f.drawn_lately;
+            to.triangles_lately += f.triangles_lately;
+            to.fill_lately += f.fill_lately;
+          }
+        }
+        for (size_t j = 0; j < plan.regions.size(); ++j) {
+          const int k = regionClient(j, clients);
           jobs.push_back({k + 1, FrameJob{f,
                                           cam,
                                           v.width,
                                           v.height,
-                                          plan.regions[size_t(k)].rect,
-                                          std::move(plan.regions[size_t(k)].objects),
+                                          plan.regions[j].rect,
+                                          std::move(plan.regions[j].objects),
                                           true,
                                           {}}});
           if (opts.visible_weights)
             jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
           jobs.back().second.ray_stride = uint8_t(stride);
+          // A client's sub-frames go back in one batch, after its last region.
+          jobs.back().second.flush = j + size_t(clients) >= plan.regions.size();
         }
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);

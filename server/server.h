@@ -41,6 +41,10 @@ struct ServerOptions {
   // (FramePlanner::enableCostGrid, cost_grid.h); frustum division only.
   // Moves split lines only: never changes a pixel.
   bool cost_grid = false;
+  // Frustum division into this many regions per client, dealt so that each
+  // client's regions are spread over the frame (FramePlanner::plan). Moves
+  // split lines only: never changes a pixel. Not with cost_grid.
+  int regions_per_client = 1;
   // With fitted weights and more than one frame in flight: a client whose
   // time ran above the clients' mean gets smaller shares until it has caught
   // up (FramePlanner::setCatchUp).

@@ -41,6 +41,7 @@ SubFrame sampleSubFrame(uint32_t frame, Rect r) {
   s.stats.vis_faults = 17;
   s.stats.render_faults = 4096;
   s.stats.triangles = 1234;
+  s.stats.submitted = 1000;
   s.stats.gpu_resident = 99;
   s.drawn = {2, 3};
   return s;
@@ -209,6 +210,7 @@ TEST(Protocol, AccumulateSumsTilesAndKeepsTheLatestResidency) {
   a.render_sys_ms = 0.25;
   a.render_faults = 3;
   a.triangles = 10;
+  a.submitted = 6;
   a.gpu_resident = 100;
   b.render_ms = 3.5;
   b.render_cpu_ms = 3;
@@ -218,6 +220,7 @@ TEST(Protocol, AccumulateSumsTilesAndKeepsTheLatestResidency) {
   b.render_faults = 4;
   b.vis_faults = 9;
   b.triangles = 5;
+  b.submitted = 2;
   b.gpu_resident = 80;
   b.ram_resident = 7;
   accumulate(total, a);
@@ -230,6 +233,7 @@ TEST(Protocol, AccumulateSumsTilesAndKeepsTheLatestResidency) {
   EXPECT_EQ(total.render_faults, 7u);
   EXPECT_EQ(total.vis_faults, 9u);
   EXPECT_EQ(total.triangles, 15u);
+  EXPECT_EQ(total.submitted, 8u);
   EXPECT_EQ(total.gpu_resident, 80u);
   EXPECT_EQ(total.ram_resident, 7u);
 }

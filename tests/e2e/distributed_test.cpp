@@ -123,7 +123,14 @@ TEST_P(Distributed, FramesArePixelIdenticalToTheReference) {
                           "objects_in_frustum", "triangles_in_frustum"})
     EXPECT_TRUE(rows[0].contains(col)) << col;
   EXPECT_TRUE(rows[0].contains("c" + std::to_string(clients) + "_bytes_sent"));
-  for (size_t f = 0; f < rows.size(); ++f) EXPECT_EQ(rows[f]["frame"], double(f));
+  for (size_t f = 0; f < rows.size(); ++f) {
+    EXPECT_EQ(rows[f]["frame"], double(f));
+    // A client that drew triangles handed some to the GL.
+    for (int k = 1; k <= clients; ++k) {
+      std::string c = "c" + std::to_string(k) + "_";
+      EXPECT_EQ(rows[f][c + "submitted"] > 0, rows[f][c + "triangles"] > 0) << f << " " << c;
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Clients, Distributed, testing::Values(1, 2, 3, 4, 7));
@@ -658,6 +665,34 @@ TEST(Balance, TheDivisionLogSetsTheForecastBesideWhatEachClientDid) {
     lately += uint64_t(row["drawn_lately"]);
   }
   EXPECT_GT(lately, 0u) << "no forecast ever counted what the clients drew";
+}
+
+// --regions-per-client: each client draws several regions a frame, sent back
+// in one batch; frames stay exact, a client's stats add its regions up (its
+// pixels are a share of the frame's, all of them together the frame), and
+// the cost grid, which needs one region a client, is refused by name.
+TEST(Balance, SeveralRegionsAClientKeepFramesExact) {
+  SmallScene& s = smallScene();
+  const int clients = 3;
+  std::string out = s.dir / "regions-per-client";
+  s.render(clients, out,
+           "--regions-per-client 3 --stats " + out + ".csv --division-log " + out + ".div.csv");
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
+  ASSERT_EQ(stats.size(), 4u);
+  for (test::CsvRow& row : stats) {
+    double bytes = 0;
+    for (int k = 1; k <= clients; ++k) bytes += row["c" + std::to_string(k) + "_bytes_raw"];
+    EXPECT_EQ(bytes, 160 * 120 * 3) << row["frame"];
+  }
+  EXPECT_EQ(test::readCsv(out + ".div.csv").size(), stats.size() * clients);
+  int status = 0;
+  std::string log =
+      s.render(clients, s.dir / "regions-grid", "--regions-per-client 2 --cost-grid on", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("--cost-grid needs one region a client"), std::string::npos) << log;
 }
 
 // An exception of a type that is not std::exception escaping a stage (as a

@@ -16,7 +16,7 @@ namespace {
 
 using test::Rng;
 
-const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
+const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, 0.0002, true};
 
 // `frames` x `clients` samples of random work, timed by kTruth at each
 // client's speed, with +-`noise` relative error.
@@ -31,7 +31,8 @@ std::vector<CostSample> samples(Rng& rng, int frames, int clients, double noise,
       s.triangles = rng.integer(1000, 60000);
       s.tested = rng.integer(50, 3000);
       s.pixels = rng.integer(10000, 800000);
-      s.fill = rng.integer(0, 3000000);  // overdraw: up to 4 layers of the largest region
+      s.fill = rng.integer(0, 3000000);   // overdraw: up to 4 layers of the largest region
+      s.raster = rng.integer(0, 100000);  // at most one triangle a footprint pixel
       double speed = speeds.empty() ? 1.0 : speeds[size_t(k)];
       s.ms = predictMs(kTruth, s) / speed * (1 + noise * (rng.integer(-1000, 1000) / 1000.0));
       out.push_back(s);
@@ -48,6 +49,7 @@ TEST(CostModel, RecoversTheCoefficientsOfNoiselessSamples) {
   EXPECT_NEAR(m.per_tested, kTruth.per_tested, 1e-10);
   EXPECT_NEAR(m.per_pixel, kTruth.per_pixel, 1e-13);
   EXPECT_NEAR(m.per_fill, kTruth.per_fill, 1e-13);
+  EXPECT_NEAR(m.per_raster, kTruth.per_raster, 1e-12);
 }
 
 TEST(CostModel, PredictsNoisySamplesWithinTheirNoise) {
@@ -78,7 +80,8 @@ TEST(CostModel, CoefficientsAreNeverNegative) {
   }
   CostModel m = fitCostModel(s);
   ASSERT_TRUE(m.fitted);
-  for (double v : {m.per_drawn, m.per_triangle, m.per_tested, m.per_pixel, m.per_fill})
+  for (double v :
+       {m.per_drawn, m.per_triangle, m.per_tested, m.per_pixel, m.per_fill, m.per_raster})
     EXPECT_GE(v, 0) << m;
 }
 
@@ -101,6 +104,29 @@ TEST(CostModel, FillIsToldApartFromThePixelsOfTheRegion) {
   ASSERT_TRUE(m.fitted);
   EXPECT_NEAR(m.per_fill, 0.00002, 0.000002) << m;
   EXPECT_LT(m.per_pixel, 0.00001) << m;
+}
+
+TEST(CostModel, RasterIsToldApartFromTheTriangles) {
+  // Two regions drawing as many triangles, one of near objects (every
+  // triangle set up) and one of far ones (the triangle cull keeps about one a
+  // pixel): the time follows the rasterised triangles.
+  std::vector<CostSample> s;
+  for (int i = 0; i < 24; ++i) {
+    CostSample c;
+    c.client = i % 2;
+    c.drawn = 40;
+    c.triangles = 400000 + 10000 * (i % 5);
+    c.tested = 200;
+    c.pixels = 100000;
+    c.fill = 150000 + 5000 * (i % 3);
+    c.raster = c.client == 0 ? c.triangles : 30000 + 2000 * (i % 7);
+    c.ms = 2 + 0.00003 * c.triangles + 0.0002 * c.raster;
+    s.push_back(c);
+  }
+  CostModel m = fitCostModel(s);
+  ASSERT_TRUE(m.fitted);
+  EXPECT_NEAR(m.per_raster, 0.0002, 0.00002) << m;
+  EXPECT_NEAR(m.per_triangle, 0.00003, 0.00001) << m;
 }
 
 TEST(CostModel, TooFewOrDegenerateSamplesAreUnfitted) {

@@ -249,6 +249,70 @@ TEST(FramePlanner, WeighsObjectsByWhatClientsDrewLately) {
   EXPECT_LE(staleTotal, 2 * FramePlanner::kHiddenWeight * scene.objects.size());
 }
 
+// A drawn object's rasterised triangles (CostSample::raster): its triangles
+// where they are fewer than its footprint's pixels, spread over the
+// footprint; one a pixel (kRasterCap) where they are more.
+// Several regions a client: the regions tile the frame, and each client's are
+// spread over it: the division's first split halves the region count, and
+// each client has half its regions on each side of it.
+TEST(FramePlanner, SeveralRegionsAClientAreSpreadOverTheFrame) {
+  Rng rng(40);
+  Scene scene = gridScene(rng, 30, 30);
+  const Rect frame{0, 0, 640, 480};
+  FramePlanner planner(scene);
+  for (int clients : {2, 3, 4})
+    for (int per : {2, 4}) {
+      SCOPED_TRACE(::testing::Message() << clients << " clients, " << per << " regions each");
+      FramePlan plan = planner.plan(topDownCamera(), 640, 480, clients, per);
+      ASSERT_TRUE(test::tilesFrame(plan.regions, frame, clients * per));
+      ASSERT_EQ(plan.planned.size(), plan.regions.size());
+      // The first half of the regions fill one side of the first split.
+      const size_t half = plan.regions.size() / 2;
+      int x0 = 640, y0 = 480, x1 = 0, y1 = 0;
+      int64_t area = 0;
+      for (size_t j = 0; j < half; ++j) {
+        const Rect& r = plan.regions[j].rect;
+        x0 = std::min(x0, r.x), y0 = std::min(y0, r.y);
+        x1 = std::max(x1, r.x + r.w), y1 = std::max(y1, r.y + r.h);
+        area += r.area();
+      }
+      ASSERT_EQ(int64_t(x1 - x0) * (y1 - y0), area);
+      const bool whole_width = x0 == 0 && x1 == 640, whole_height = y0 == 0 && y1 == 480;
+      ASSERT_TRUE(whole_width || whole_height);
+      ASSERT_LT(area, frame.area());
+      for (int k = 0; k < clients; ++k) {
+        int inside = 0;
+        for (size_t j = 0; j < plan.regions.size(); ++j) {
+          if (regionClient(j, clients) != k) continue;
+          const Rect& r = plan.regions[j].rect;
+          inside += r.x >= x0 && r.x + r.w <= x1 && r.y >= y0 && r.y + r.h <= y1;
+        }
+        EXPECT_EQ(inside, per / 2) << "client " << k;
+      }
+    }
+}
+
+TEST(FramePlanner, RasterCountsAtMostOneTriangleAFootprintPixel) {
+  Rng rng(39);
+  Scene scene = gridScene(rng, 4, 4);
+  Camera camera = topDownCamera();
+  const Rect frame{0, 0, 256, 256}, left{0, 0, 128, 256};
+  for (uint64_t triangles : {uint64_t(7), uint64_t(1) << 40}) {
+    for (ObjectBounds& o : scene.objects) o.weight = triangles;
+    FramePlanner planner(scene);
+    for (uint32_t o = 0; o < scene.objects.size(); ++o) {
+      double area = planner.fillOf(camera, 256, 256, frame, {o});
+      ASSERT_GT(area, 0) << o;
+      double expected = triangles > area ? area : double(triangles);
+      EXPECT_NEAR(planner.rasterOf(camera, 256, 256, frame, {o}), expected, 1e-9 * expected) << o;
+      // A region gets the part of the footprint it holds.
+      EXPECT_NEAR(planner.rasterOf(camera, 256, 256, left, {o}),
+                  expected * planner.fillOf(camera, 256, 256, left, {o}) / area, 1e-9 * expected)
+          << o;
+    }
+  }
+}
+
 TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
   Rng rng(36);
   Scene scene = gridScene(rng, 10, 10);
@@ -286,7 +350,7 @@ TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
 
 // The catching-up tests' cost model, and client `client`'s sample of `base`
 // work with everything but the region's pixels times `more`, timed by it.
-const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, true};
+const CostModel kTruth{0.02, 0.0005, 0.003, 0.00001, 0.000004, 0, true};
 CostSample timedSample(int client, double more, CostSample base) {
   base.client = client;
   base.drawn *= more;
