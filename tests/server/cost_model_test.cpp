@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <vector>
 
@@ -85,22 +86,26 @@ TEST(CostModel, CoefficientsAreNeverNegative) {
     EXPECT_GE(v, 0) << m;
 }
 
+// 24 samples of two clients taking turns, sample i made by `make(i, client)`.
+std::vector<CostSample> twoClients(const std::function<CostSample(int, int)>& make) {
+  std::vector<CostSample> s;
+  for (int i = 0; i < 24; ++i) {
+    s.push_back(make(i, i % 2));
+    s.back().client = i % 2;
+  }
+  return s;
+}
+
 TEST(CostModel, FillIsToldApartFromThePixelsOfTheRegion) {
   // Two regions of equal area, one empty and one under a few large objects:
   // the time follows the fill, not the area.
-  std::vector<CostSample> s;
-  for (int i = 0; i < 24; ++i) {
-    CostSample c;
-    c.client = i % 2;
-    c.drawn = 5;
-    c.triangles = 300;
-    c.tested = 200;
+  CostModel m = fitCostModel(twoClients([](int i, int client) {
+    CostSample c{.drawn = 5, .triangles = 300, .tested = 200};
     c.pixels = 200000 + 1000 * (i % 5);
-    c.fill = c.client == 0 ? 0 : 400000 + 20000 * (i % 7);
+    c.fill = client == 0 ? 0 : 400000 + 20000 * (i % 7);
     c.ms = 1 + 0.000005 * c.pixels + 0.00002 * c.fill;
-    s.push_back(c);
-  }
-  CostModel m = fitCostModel(s);
+    return c;
+  }));
   ASSERT_TRUE(m.fitted);
   EXPECT_NEAR(m.per_fill, 0.00002, 0.000002) << m;
   EXPECT_LT(m.per_pixel, 0.00001) << m;
@@ -110,20 +115,16 @@ TEST(CostModel, RasterIsToldApartFromTheTriangles) {
   // Two regions drawing as many triangles, one of near objects (every
   // triangle set up) and one of far ones (the triangle cull keeps about one a
   // pixel): the time follows the rasterised triangles.
-  std::vector<CostSample> s;
-  for (int i = 0; i < 24; ++i) {
-    CostSample c;
-    c.client = i % 2;
-    c.drawn = 40;
-    c.triangles = 400000 + 10000 * (i % 5);
-    c.tested = 200;
-    c.pixels = 100000;
-    c.fill = 150000 + 5000 * (i % 3);
-    c.raster = c.client == 0 ? c.triangles : 30000 + 2000 * (i % 7);
+  CostModel m = fitCostModel(twoClients([](int i, int client) {
+    CostSample c{.drawn = 40,
+                 .triangles = 400000.0 + 10000 * (i % 5),
+                 .tested = 200,
+                 .pixels = 100000,
+                 .fill = 150000.0 + 5000 * (i % 3)};
+    c.raster = client == 0 ? c.triangles : 30000 + 2000 * (i % 7);
     c.ms = 2 + 0.00003 * c.triangles + 0.0002 * c.raster;
-    s.push_back(c);
-  }
-  CostModel m = fitCostModel(s);
+    return c;
+  }));
   ASSERT_TRUE(m.fitted);
   EXPECT_NEAR(m.per_raster, 0.0002, 0.00002) << m;
   EXPECT_NEAR(m.per_triangle, 0.00003, 0.00001) << m;
