@@ -245,30 +245,20 @@ std::vector<Footprint> FramePlanner::footprints(const std::vector<uint32_t>& vis
       spawned_cpu_ms);
 }
 
-double FramePlanner::fillOf(const Camera& camera, int width, int height, Rect region,
-                            const std::vector<uint32_t>& drawn) const {
+DrawnCover FramePlanner::coverOf(const Camera& camera, int width, int height, Rect region,
+                                 const std::vector<uint32_t>& drawn) const {
   FootprintProjector project(camera, width, height);
-  double pixels = 0;
-  Footprint f;
-  for (uint32_t o : drawn) {
-    if (o < boxes_.size() && project(boxes_[o].box, 0, o, &f)) pixels += overlapArea(f, region);
-  }
-  return pixels;
-}
-
-double FramePlanner::rasterOf(const Camera& camera, int width, int height, Rect region,
-                              const std::vector<uint32_t>& drawn) const {
-  FootprintProjector project(camera, width, height);
-  double tris = 0;
+  DrawnCover cover;
   Footprint f;
   const Rect frame{0, 0, width, height};
   for (uint32_t o : drawn) {
     if (o < boxes_.size() && project(boxes_[o].box, 0, o, &f)) {
-      tris +=
-          overlapArea(f, region) * rasterPerPixel(double(boxes_[o].weight), overlapArea(f, frame));
+      const double inside = overlapArea(f, region);
+      cover.fill += inside;
+      cover.raster += inside * rasterPerPixel(double(boxes_[o].weight), overlapArea(f, frame));
     }
   }
-  return tris;
+  return cover;
 }
 
 RegionForecast FramePlanner::forecast(const Camera& camera, int width, int height,
@@ -283,7 +273,7 @@ RegionForecast FramePlanner::forecast(const Camera& camera, int width, int heigh
         f.triangles_lately += boxes_[o].weight;
       }
   f.drawn_lately = lately.size();
-  f.fill_lately = fillOf(camera, width, height, region.rect, lately);
+  f.fill_lately = coverOf(camera, width, height, region.rect, lately).fill;
   return f;
 }
 

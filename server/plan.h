@@ -39,6 +39,11 @@ struct FramePlan {
   CostGrid grid;  // the cost grid the footprints were weighed with (empty: none)
 };
 
+// What a client's drawn objects cover of its region (FramePlanner::coverOf).
+struct DrawnCover {
+  double fill = 0, raster = 0;
+};
+
 // The 0-based client region j of a FramePlan goes to.
 inline int regionClient(size_t j, int clients) {
   return int(j % size_t(clients));
@@ -53,6 +58,13 @@ struct RegionForecast {
   uint64_t triangles_lately = 0;  // their triangles
   double fill_lately = 0;         // pixels of their footprints inside the region
   friend bool operator==(const RegionForecast&, const RegionForecast&) = default;
+  RegionForecast& operator+=(const RegionForecast& o) {  // two regions' together
+    objects += o.objects;
+    drawn_lately += o.drawn_lately;
+    triangles_lately += o.triangles_lately;
+    fill_lately += o.fill_lately;
+    return *this;
+  }
 };
 std::ostream& operator<<(std::ostream& os, const RegionForecast& f);
 
@@ -190,15 +202,13 @@ class FramePlanner {
   bool costGridEnabled() const;
   CostGrid costGrid() const;  // a copy, for logs and tests
   static constexpr int kGridColumns = 32, kGridRows = 24;
-  // A client's fill for CostSample: the pixels of the footprints of `drawn`
-  // (object indices) inside `region`, overlaps counted once per object.
-  double fillOf(const Camera& camera, int width, int height, Rect region,
-                const std::vector<uint32_t>& drawn) const;
-  // A client's raster for CostSample: of `drawn`, each footprint's pixels
-  // inside `region` times rasterPerPixel(its triangles, its pixels in the
-  // frame).
-  double rasterOf(const Camera& camera, int width, int height, Rect region,
-                  const std::vector<uint32_t>& drawn) const;
+  // A client's fill and raster for CostSample, from one projection of
+  // `drawn` (object indices): fill, the pixels of their footprints inside
+  // `region`, overlaps counted once per object; raster, each footprint's
+  // pixels inside `region` times rasterPerPixel(its triangles, its pixels in
+  // the frame).
+  DrawnCover coverOf(const Camera& camera, int width, int height, Rect region,
+                     const std::vector<uint32_t>& drawn) const;
   // The forecast for `region` of the frame being planned (planningFrame),
   // by the rule the weights use (drawn in the last kSeenFrames frames; an
   // object not yet reported on since it came into view counts when the

@@ -63,8 +63,7 @@ struct FrameRecord {
   Image image;                            // assembled RGBA, top row first
   std::vector<ClientStats> clients;       // per client, summed over its sub-frames
   std::vector<uint64_t> pixels;           // per client: pixels of its sub-frames
-  std::vector<double> fill;               // per client: FramePlanner::fillOf its sub-frames
-  std::vector<double> raster;             // per client: FramePlanner::rasterOf its sub-frames
+  std::vector<DrawnCover> cover;          // per client: FramePlanner::coverOf its sub-frames
   std::vector<RegionCost> planned;        // per client (frustum division): region, planned weight
   CostGrid grid;                          // the cost grid the frame was planned with
   std::vector<RegionForecast> forecasts;  // per client, with --division-log
@@ -127,8 +126,7 @@ class Assembler {
     rec.image = Image::blank(opts_.view.width, opts_.view.height);
     rec.clients.resize(size_t(clients_));
     rec.pixels.resize(size_t(clients_));
-    rec.fill.resize(size_t(clients_));
-    rec.raster.resize(size_t(clients_));
+    rec.cover.resize(size_t(clients_));
     rec.owed = std::move(owed);
     rec.expected = expected;
     std::lock_guard<std::mutex> lock(mu_);
@@ -317,10 +315,10 @@ class Assembler {
     if (planner_) {
       planner_->reportDrawn(sf.frame, sf.drawn);
       if (opts_.fitted_weights) {
-        rec->fill[size_t(rank - 1)] +=
-            planner_->fillOf(rec->camera, rec->image.width, rec->image.height, sf.region, sf.drawn);
-        rec->raster[size_t(rank - 1)] += planner_->rasterOf(rec->camera, rec->image.width,
-                                                            rec->image.height, sf.region, sf.drawn);
+        DrawnCover c = planner_->coverOf(rec->camera, rec->image.width, rec->image.height,
+                                         sf.region, sf.drawn);
+        rec->cover[size_t(rank - 1)].fill += c.fill;
+        rec->cover[size_t(rank - 1)].raster += c.raster;
       }
     }
     assemble_ms_[sf.frame] += msBetween(t0, Clock::now());
@@ -442,8 +440,8 @@ class Assembler {
       s.triangles = double(c.triangles);
       s.tested = double(c.queried);
       s.pixels = double(rec.pixels[k]);
-      s.fill = rec.fill[k];
-      s.raster = rec.raster[k];
+      s.fill = rec.cover[k].fill;
+      s.raster = rec.cover[k].raster;
       s.ms = cpu ? c.vis_cpu_ms + c.render_cpu_ms
                  : c.prepare_ms + c.retrieve_ms + c.load_ms + c.render_ms + c.readback_ms +
                        c.compress_ms;
@@ -788,21 +786,12 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         // needs one region a client) and the weight of all its regions.
         for (int k = 0; k < clients; ++k)
           rec.planned.push_back({plan.regions[size_t(k)].rect, 0, 0});
-        for (size_t j = 0; j < plan.regions.size(); ++j)
-          rec.planned[size_t(regionClient(j, clients))].planned += plan.planned[j];
-        if (division_log) {
-          rec.forecasts.resize(size_t(clients));
-          for (size_t j = 0; j < plan.regions.size(); ++j) {
-            RegionForecast f = planner.forecast(cam, v.width, v.height, plan.regions[j]);
-            RegionForecast& to = rec.forecasts[size_t(regionClient(j, clients))];
-            to.objects += f.objects;
-            to.drawn_lately += f.drawn_lately;
-            to.triangles_lately += f.triangles_lately;
-            to.fill_lately += f.fill_lately;
-          }
-        }
+        if (division_log) rec.forecasts.resize(size_t(clients));
         for (size_t j = 0; j < plan.regions.size(); ++j) {
           const int k = regionClient(j, clients);
+          rec.planned[size_t(k)].planned += plan.planned[j];
+          if (division_log)
+            rec.forecasts[size_t(k)] += planner.forecast(cam, v.width, v.height, plan.regions[j]);
           jobs.push_back({k + 1, FrameJob{f,
                                           cam,
                                           v.width,

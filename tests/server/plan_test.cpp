@@ -301,14 +301,14 @@ TEST(FramePlanner, RasterCountsAtMostOneTriangleAFootprintPixel) {
     for (ObjectBounds& o : scene.objects) o.weight = triangles;
     FramePlanner planner(scene);
     for (uint32_t o = 0; o < scene.objects.size(); ++o) {
-      double area = planner.fillOf(camera, 256, 256, frame, {o});
+      DrawnCover whole = planner.coverOf(camera, 256, 256, frame, {o});
+      double area = whole.fill;
       ASSERT_GT(area, 0) << o;
       double expected = triangles > area ? area : double(triangles);
-      EXPECT_NEAR(planner.rasterOf(camera, 256, 256, frame, {o}), expected, 1e-9 * expected) << o;
+      EXPECT_NEAR(whole.raster, expected, 1e-9 * expected) << o;
       // A region gets the part of the footprint it holds.
-      EXPECT_NEAR(planner.rasterOf(camera, 256, 256, left, {o}),
-                  expected * planner.fillOf(camera, 256, 256, left, {o}) / area, 1e-9 * expected)
-          << o;
+      DrawnCover part = planner.coverOf(camera, 256, 256, left, {o});
+      EXPECT_NEAR(part.raster, expected * part.fill / area, 1e-9 * expected) << o;
     }
   }
 }
@@ -336,7 +336,7 @@ TEST(FramePlanner, ForecastsCountWhatTheWeightsCountAsDrawnLately) {
         ++expected.drawn_lately;
         expected.triangles_lately += scene.objects[o].weight;
       }
-    expected.fill_lately = planner.fillOf(camera, 256, 256, r.rect, mine);
+    expected.fill_lately = planner.coverOf(camera, 256, 256, r.rect, mine).fill;
     EXPECT_EQ(planner.forecast(camera, 256, 256, r), expected) << r;
     EXPECT_EQ(mine.empty(), expected.fill_lately == 0.0) << r;  // each drawn object covers pixels
     lately_total += expected.drawn_lately;
