@@ -402,6 +402,39 @@ TEST(FramePlanner, AClientBehindTheOthersGetsASmallerShareUntilItCatchesUp) {
   EXPECT_TRUE(planner.shares(4).empty());  // fitted for 3 clients only
 }
 
+// With several regions a client, every region of a client is planned at
+// that client's share: a client behind the others gets less in all.
+TEST(FramePlanner, SeveralRegionsAClientTakeTheirClientsShare) {
+  Rng rng(41);
+  Scene scene = gridScene(rng, 30, 30);
+  FramePlanner planner(scene);
+  reportFrames(planner, 12, [&](int, int k) {
+    CostSample s;
+    s.drawn = rng.real(50, 150);
+    s.triangles = rng.real(1e4, 5e4);
+    s.tested = rng.real(200, 900);
+    s.pixels = rng.real(1e5, 3e5);
+    s.fill = rng.real(1e5, 6e5);
+    return timedSample(k, k == 0 ? 2.0 : 1.0, s);  // client 0: twice the work
+  });
+  ASSERT_LT(planner.shares(3)[0], 0.9);
+  // The largest of client 0's regions' planned weights, over the mean region's.
+  auto largest = [&] {
+    FramePlan plan = planner.plan(topDownCamera(), 640, 480, 3, 2);
+    double most = 0, all = 0;
+    for (size_t j = 0; j < plan.regions.size(); ++j) {
+      all += plan.planned[j];
+      if (regionClient(j, 3) == 0) most = std::max(most, plan.planned[j]);
+    }
+    return most * double(plan.regions.size()) / all;
+  };
+  const double behind = largest();
+  planner.setCatchUp(false);  // equal shares
+  const double even = largest();
+  EXPECT_NEAR(even, 1.0, 0.15);
+  EXPECT_LT(behind, even - 0.1);
+}
+
 // Frames planned but not yet reported already pay part of a debt: the next
 // frame's share is cut less for each of them, and once they are reported
 // (with no new times) the measured debt alone steers again.
