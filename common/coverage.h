@@ -52,6 +52,11 @@ using WindowVertices = std::vector<WindowVertex>;
 void projectVertices(const float* positions, size_t count, const WindowTransform& t,
                      WindowVertices* out);
 
+// A triangle whose box (widened by its vertices' radii) holds at most this
+// many pixel centres of the scissor is tested centre by centre against its
+// edges, widened likewise; a larger box is kept on the box test alone.
+inline constexpr int64_t kExactCentres = 4;
+
 // Copies to `out` the triangles of the list `indices[0, count)` (count a
 // multiple of 3) that can cover a pixel centre inside `scissor`, in their
 // order; returns how many indices it wrote. `out` holds `count` indices; it

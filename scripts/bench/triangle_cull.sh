@@ -10,13 +10,16 @@
 # of every run is compared with the reference's.
 # Environment: DMMR_BENCH_REPS (rounds, default 3), DMMR_BENCH_SCENES
 # (default "skullmesh4 plants4 monuments16"), DMMR_BENCH_OUT (default
-# out/bench/triangle-cull).
+# out/bench/triangle-cull). DMMR_BENCH_BASE=DIR makes it an A/B of two
+# builds: the "off" runs become DIR/dmmr-render's (another build's bin
+# directory) with its default culling, labelled "base" in the table.
 # usage: scripts/bench/triangle_cull.sh   (prints a Markdown table)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 bin=${DMMR_BIN:-build/bin}
 out=${DMMR_BENCH_OUT:-out/bench/triangle-cull}
 reps=${DMMR_BENCH_REPS:-3}
+base=${DMMR_BENCH_BASE:-}
 scenes=${DMMR_BENCH_SCENES:-skullmesh4 plants4 monuments16}
 models=${DMMR_MODELS:-../shared/models}
 mkdir -p "$out"
@@ -46,6 +49,13 @@ scene_of() {  # sets sc, path, w, h
   esac
 }
 retry() { "$@" || "$@"; }
+render_of() {  # mode: the dmmr-render command line for it
+  if [ "$1" = off ] && [ -n "$base" ]; then
+    echo "$base/dmmr-render"
+  else
+    echo "$bin/dmmr-render --triangle-cull $1"
+  fi
+}
 for r in $(seq 1 "$reps"); do
   order="off on"
   [ $((r % 2)) -eq 0 ] && order="on off"
@@ -54,16 +64,19 @@ for r in $(seq 1 "$reps"); do
     view=(--scene "$sc" --walkthrough "$path" --width "$w" --height "$h" --no-progress)
     $bin/dmmr-reference "${view[@]}" --out "$out/$s-ref" --stats "$out/$s-ref-r$r.csv"
     for m in $order; do
-      retry "${mpi[@]}" $bin/dmmr-render "${view[@]}" --triangle-cull "$m" --out "$out/$s-1-$m" \
+      # shellcheck disable=SC2046
+      retry "${mpi[@]}" $(render_of "$m") "${view[@]}" --out "$out/$s-1-$m" \
         --stats "$out/$s-1-$m-r$r.csv" >/dev/null 2>&1
       diff_frames "$out/$s-ref" "$out/$s-1-$m" "$out/$s-1-$m-r$r.cmp.csv"
     done
     for m in $order; do
-      LP_NUM_THREADS=1 retry "${launch[@]}" -np 5 -x LP_NUM_THREADS $bin/dmmr-render "${view[@]}" \
-        --triangle-cull "$m" --out "$out/$s-4-$m" --stats "$out/$s-4-$m-r$r.csv" >/dev/null 2>&1
+      # shellcheck disable=SC2046
+      LP_NUM_THREADS=1 retry "${launch[@]}" -np 5 -x LP_NUM_THREADS $(render_of "$m") "${view[@]}" \
+        --out "$out/$s-4-$m" --stats "$out/$s-4-$m-r$r.csv" >/dev/null 2>&1
       diff_frames "$out/$s-ref" "$out/$s-4-$m" "$out/$s-4-$m-r$r.cmp.csv"
     done
     uptime >>"$out/load.txt"
   done
 done
-python3 scripts/bench/triangle_cull_report.py "$out" "$reps" $scenes
+DMMR_BENCH_OFF_LABEL=${base:+base} python3 scripts/bench/triangle_cull_report.py "$out" "$reps" \
+  $scenes

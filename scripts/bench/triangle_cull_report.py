@@ -10,6 +10,7 @@ work per frame (prepare, retrieve, load, render, read back, compress);
 max/mean is over the 4 clients, per frame, then the median over frames.
 """
 import csv
+import os
 import statistics as st
 import sys
 
@@ -45,11 +46,13 @@ def fmt(v, d=1):
 
 
 R = range(1, reps + 1)
+# With DMMR_BENCH_BASE, "off" is another build's default (labelled base).
+OFF = os.environ.get("DMMR_BENCH_OFF_LABEL") or "off"
 print(f"Median of {reps} rounds (each round's figure in brackets).\n")
-print("| scene | reference ms | 1 client off ms | 1 client on ms | on vs off (1 client) "
-      "| reference / 1 client off | reference / 1 client on | 1 client's work off / on ms "
-      "| 4 clients off ms | 4 clients on ms | on vs off (4 clients) | 4 clients max/mean off / on "
-      "| differing pixels (worst frame) |")
+print(f"| scene | reference ms | 1 client {OFF} ms | 1 client on ms | on vs {OFF} (1 client) "
+      f"| reference / 1 client {OFF} | reference / 1 client on | 1 client's work {OFF} / on ms "
+      f"| 4 clients {OFF} ms | 4 clients on ms | on vs {OFF} (4 clients) "
+      f"| 4 clients max/mean {OFF} / on | differing pixels (worst frame) |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for s in scenes:
     ref = [frame_ms(f"{s}-ref-r{r}") for r in R]
