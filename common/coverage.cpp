@@ -39,30 +39,44 @@ void projectVertices(const float* positions, size_t count, const WindowTransform
   // at most the eye row's sum plus its error): kDot (2 + kDot) times the
   // projection row's magnitudes applied to the eye rows' sums.
   const double k_clip = kDot * (2 + kDot);
+  // One bound for all the vertices, from their largest coordinate
+  // magnitudes (finite ones: a non-finite vertex is kept apart below): a
+  // vertex's own would be at most as large, and the error it bounds is far
+  // under the snapping step either way, so the radius hardly grows while
+  // each vertex is spared half of its arithmetic.
+  float big[3] = {0, 0, 0};
+  const float top = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < count; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const float a = std::fabs(positions[3 * i + size_t(k)]);
+      big[k] = a > big[k] && a <= top ? a : big[k];
+    }
+  double mag[4];
+  for (int r = 0; r < 4; ++r)
+    mag[r] = am[r][0] * big[0] + am[r][1] * big[1] + am[r][2] * big[2] + am[r][3];
+  double dc[3];
+  for (int k = 0; k < 3; ++k)
+    dc[k] =
+        k_clip * (ap[k][0] * mag[0] + ap[k][1] * mag[1] + ap[k][2] * mag[2] + ap[k][3] * mag[3]);
+  const double dw = dc[2];
   const double half_w = 0.5 * t.width, half_h = 0.5 * t.height;
   const double snap = std::ldexp(1.0, -std::max(0, t.subpixel_bits));
   const float inf = std::numeric_limits<float>::infinity();
   WindowVertex* o = out->data();
   for (size_t i = 0; i < count; ++i) {
     const double x = positions[3 * i], y = positions[3 * i + 1], z = positions[3 * i + 2];
-    const double ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
-    double e[4], mag[4];
-    for (int r = 0; r < 4; ++r) {
-      e[r] = m[r][0] * x + m[r][1] * y + m[r][2] * z + m[r][3];
-      mag[r] = am[r][0] * ax + am[r][1] * ay + am[r][2] * az + am[r][3];
-    }
-    double c[3], dc[3];
-    for (int k = 0; k < 3; ++k) {
+    double e[4];
+    for (int r = 0; r < 4; ++r) e[r] = m[r][0] * x + m[r][1] * y + m[r][2] * z + m[r][3];
+    double c[3];
+    for (int k = 0; k < 3; ++k)
       c[k] = p[k][0] * e[0] + p[k][1] * e[1] + p[k][2] * e[2] + p[k][3] * e[3];
-      dc[k] =
-          k_clip * (ap[k][0] * mag[0] + ap[k][1] * mag[1] + ap[k][2] * mag[2] + ap[k][3] * mag[3]);
-    }
-    const double w = c[2], dw = dc[2];
+    const double w = c[2];
     const double inv = 1 / w, nx = c[0] * inv, ny = c[1] * inv;
     const double anx = std::fabs(nx), any = std::fabs(ny);
     // The quotient's error from both operands' and its own rounding, then
-    // the viewport transform's.
-    const double inv_low = 1 / (w - dw);
+    // the viewport transform's. 1 / (w - dw) <= (1 + 2 dw / w) / w where
+    // w > 2 dw (checked below; otherwise the vertex is kept apart).
+    const double inv_low = inv * (1 + 2 * dw * inv);
     const double dnx = (dc[0] + anx * dw) * inv_low + 2 * kU * anx;
     const double dny = (dc[1] + any * dw) * inv_low + 2 * kU * any;
     const double dx = (dnx + 4 * kU * (anx + 1)) * half_w;
