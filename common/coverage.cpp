@@ -116,15 +116,18 @@ inline float max3(float a, float b, float c) {
 }  // namespace
 
 namespace {
-// Whether the triangle, each vertex moved by up to r (finite), can cover a
-// pixel centre (i + 0.5, j + 0.5) for i in [cx0, cx1], j in [cy0, cy1]. At a
-// centre p it covers, the moved triangle's three edge functions have one
-// sign (or are 0: any tie rule), and moving an edge's ends a, b by up to r
-// changes its function (b - a) x (p - a) by at most
-// r (2 |p - a| + |b - a| + 2 r), taken here with 1-norms (never smaller).
-// Both windings are tried, so a triangle whose winding the error could
-// flip is decided as either. Exact in double: the inputs are floats of
-// window coordinates under 2^30, and the margin covers the rounding.
+// Whether the triangle, each vertex moved by up to r (finite) along each
+// axis, can cover a pixel centre (i + 0.5, j + 0.5) for i in [cx0, cx1], j
+// in [cy0, cy1]. At a centre p it covers, the moved triangle's three edge
+// functions have one sign (or are 0: any tie rule). Moving an edge's ends
+// a, b by da, db changes its function (b - a) x (p - a) by
+// (db - da) x (p - a) - (b - a) x da - (db - da) x da, and u x d is at most
+// |u|_1 r for d within r on each axis: at most
+// r (2 |p - a|_1 + |b - a|_1 + 4 r) in all. Both windings are tried, so a
+// triangle whose winding the error could flip is decided as either. The
+// double arithmetic's own rounding (relative 2^-52 of products whose
+// factors the margin's terms bound) is covered by the margin's last
+// factor and term.
 bool reachesACentre(const WindowVertex& a, const WindowVertex& b, const WindowVertex& c, double r,
                     int64_t cx0, int64_t cx1, int64_t cy0, int64_t cy1) {
   const WindowVertex* vs[3] = {&a, &b, &c};
@@ -133,7 +136,7 @@ bool reachesACentre(const WindowVertex& a, const WindowVertex& b, const WindowVe
     const WindowVertex &p = *vs[e], &q = *vs[(e + 1) % 3];
     ex[e] = double(q.x) - p.x;
     ey[e] = double(q.y) - p.y;
-    len[e] = std::fabs(ex[e]) + std::fabs(ey[e]) + 2 * r;
+    len[e] = std::fabs(ex[e]) + std::fabs(ey[e]) + 4 * r;
   }
   for (int64_t j = cy0; j <= cy1; ++j)
     for (int64_t i = cx0; i <= cx1; ++i) {
