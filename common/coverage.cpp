@@ -113,9 +113,7 @@ inline float min3(float a, float b, float c) {
 inline float max3(float a, float b, float c) {
   return maxf(maxf(a, b), c);
 }
-}  // namespace
 
-namespace {
 // Whether the triangle, each vertex moved by up to r (finite) along each
 // axis, can cover a pixel centre (i + 0.5, j + 0.5) for i in [cx0, cx1], j
 // in [cy0, cy1]. At a centre p it covers, the moved triangle's three edge

@@ -16,9 +16,10 @@
 // of the magnitudes of its terms), plus one sub-pixel snapping step
 // (GL_SUBPIXEL_BITS). A triangle is dropped only when its box widened by
 // its vertices' radii still holds no pixel centre, or, for a box of a few
-// centres, when no centre lies within its edges widened likewise. A vertex not safely in
-// front of the eye (w near or below 0, where the projected box says
-// nothing about the clipped triangle) keeps every triangle that uses it.
+// centres, when no centre lies within its edges widened likewise. A vertex
+// not safely in front of the eye (w near or below 0, where the projected
+// box says nothing about the clipped triangle) keeps every triangle that
+// uses it.
 #pragma once
 
 #include <cstddef>

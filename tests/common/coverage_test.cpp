@@ -256,8 +256,10 @@ TEST(Coverage, DropsATriangleWhoseBoxButNotItselfHoldsACentre) {
   // The centre lies 0.07 pixels outside the edge y = x - 0.1, either winding.
   EXPECT_EQ(keptOf(triangle(at(10.3, 10.2), at(10.9, 10.2), at(10.9, 10.8))), 0u);
   EXPECT_EQ(keptOf(triangle(at(10.3, 10.2), at(10.9, 10.8), at(10.9, 10.2))), 0u);
-  // A box of more than kExactCentres centres is kept on the box test.
-  EXPECT_EQ(keptOf(triangle(at(10.1, 10.1), at(12.4, 10.1), at(10.1, 12.4))), 1u);
+  // A box of more than kExactCentres centres is kept on the box test: this
+  // sliver's box holds 3 x 3 centres, and it passes 0.07 pixels or more
+  // from each of the three on its diagonal.
+  EXPECT_EQ(keptOf(triangle(at(10.1, 10.0), at(12.9, 12.8), at(12.9, 12.85))), 1u);
 }
 
 TEST(Coverage, DropsATriangleOutsideTheScissor) {
