@@ -68,4 +68,21 @@ inline constexpr int64_t kExactCentres = 4;
 size_t keepCoveringTriangles(const uint32_t* indices, size_t count, const WindowVertices& v,
                              Rect scissor, uint32_t* out);
 
+namespace detail {
+// The implementations projectVertices and keepCoveringTriangles choose
+// between, for tests and benchmarks: the portable loops, and, on x86-64 CPUs
+// with AVX2 (haveAvx2), four vertices or eight triangles at a time with the
+// same floats and doubles in the same operations, so that both give the
+// same vertices and keep the same triangles, bit for bit.
+size_t keepCoveringTrianglesScalar(const uint32_t* indices, size_t count, const WindowVertices& v,
+                                   Rect scissor, uint32_t* out);
+bool haveAvx2();  // false where the build has no AVX2 path
+void projectVerticesScalar(const float* positions, size_t count, const WindowTransform& t,
+                           WindowVertices* out);
+void projectVerticesAvx2(const float* positions, size_t count, const WindowTransform& t,
+                         WindowVertices* out);  // only where haveAvx2()
+size_t keepCoveringTrianglesAvx2(const uint32_t* indices, size_t count, const WindowVertices& v,
+                                 Rect scissor, uint32_t* out);  // only where haveAvx2()
+}  // namespace detail
+
 }  // namespace dmmr

@@ -7,12 +7,15 @@
 //   coverage_bench [N] [RUNS]     defaults: 1024, 9
 //
 // Prints the median over RUNS of projectVertices' nanoseconds a vertex and
-// keepCoveringTriangles' a triangle, and the triangles kept.
+// keepCoveringTriangles' a triangle, their portable loops' and (where the
+// CPU has AVX2) their AVX2 paths', timed alternately, and the triangles
+// kept; exits 1 if the paths disagree.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <vector>
 
 #include "camera.h"
@@ -55,23 +58,45 @@ int main(int argc, char** argv) {
   WindowTransform t{viewRotation(cam) * rel, projectionMatrix(cam), 512, 512, 8};
   WindowVertices v;
   std::vector<uint32_t> out(indices.size());
-  std::vector<double> project_ns, keep_ns;
-  size_t kept = 0;
+  std::vector<double> project_ns, project_avx2_ns, scalar_ns, avx2_ns;
+  size_t kept = 0, kept_avx2 = 0;
+  const double tris = double(indices.size() / 3);
+  auto ns = [](auto a, auto b) { return std::chrono::duration<double, std::nano>(b - a).count(); };
   for (int r = 0; r < runs; ++r) {
     auto t0 = std::chrono::steady_clock::now();
-    projectVertices(positions.data(), positions.size() / 3, t, &v);
+    detail::projectVerticesScalar(positions.data(), positions.size() / 3, t, &v);
     auto t1 = std::chrono::steady_clock::now();
-    kept = keepCoveringTriangles(indices.data(), indices.size(), v, {0, 0, 512, 512}, out.data());
+    kept = detail::keepCoveringTrianglesScalar(indices.data(), indices.size(), v, {0, 0, 512, 512},
+                                               out.data());
     auto t2 = std::chrono::steady_clock::now();
-    project_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() /
-                         double(positions.size() / 3));
-    keep_ns.push_back(std::chrono::duration<double, std::nano>(t2 - t1).count() /
-                      double(indices.size() / 3));
+    project_ns.push_back(ns(t0, t1) / double(positions.size() / 3));
+    scalar_ns.push_back(ns(t1, t2) / tris);
+    if (detail::haveAvx2()) {
+      WindowVertices v2;
+      auto t4 = std::chrono::steady_clock::now();
+      detail::projectVerticesAvx2(positions.data(), positions.size() / 3, t, &v2);
+      project_avx2_ns.push_back(ns(t4, std::chrono::steady_clock::now()) /
+                                double(positions.size() / 3));
+      if (std::memcmp(v.data(), v2.data(), v.size() * sizeof(WindowVertex)) != 0) {
+        std::fprintf(stderr, "coverage_bench: the AVX2 projection differs\n");
+        return 1;
+      }
+      auto t3 = std::chrono::steady_clock::now();
+      kept_avx2 = detail::keepCoveringTrianglesAvx2(indices.data(), indices.size(), v,
+                                                    {0, 0, 512, 512}, out.data());
+      avx2_ns.push_back(ns(t3, std::chrono::steady_clock::now()) / tris);
+    }
   }
-  std::sort(project_ns.begin(), project_ns.end());
-  std::sort(keep_ns.begin(), keep_ns.end());
-  std::printf("project %.2f ns/vertex, keep %.2f ns/triangle, kept %zu of %zu triangles\n",
-              project_ns[project_ns.size() / 2], keep_ns[keep_ns.size() / 2], kept / 3,
-              indices.size() / 3);
-  return 0;
+  auto median = [](std::vector<double> x) {
+    std::sort(x.begin(), x.end());
+    return x.empty() ? 0.0 : x[x.size() / 2];
+  };
+  std::printf("portable: project %.2f ns/vertex, keep %.2f ns/triangle", median(project_ns),
+              median(scalar_ns));
+  if (detail::haveAvx2())
+    std::printf("; AVX2: project %.2f, keep %.2f (the same vertices; kept %s)",
+                median(project_avx2_ns), median(avx2_ns),
+                kept_avx2 == kept ? "the same" : "OTHERS");
+  std::printf(", kept %zu of %zu triangles\n", kept / 3, indices.size() / 3);
+  return kept_avx2 == kept || !detail::haveAvx2() ? 0 : 1;
 }

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -223,11 +224,22 @@ std::vector<float> triangle(std::vector<float> a, const std::vector<float>& b,
   a.insert(a.end(), c.begin(), c.end());
   return a;
 }
+// Triangles kept, by keepCoveringTriangles; where the CPU has AVX2, the
+// same list repeated eight times (one batch of the AVX2 path, which a short
+// list never reaches) must keep eight times as many.
 size_t keptOf(const std::vector<float>& positions, Rect scissor = {0, 0, 100, 100},
               std::vector<uint32_t> indices = {0, 1, 2}) {
   WindowVertices v = project(positions);
   std::vector<uint32_t> out(indices.size());
-  return keepCoveringTriangles(indices.data(), indices.size(), v, scissor, out.data()) / 3;
+  const size_t kept = keepCoveringTriangles(indices.data(), indices.size(), v, scissor, out.data());
+  if (detail::haveAvx2()) {
+    std::vector<uint32_t> eight, out8(8 * indices.size());
+    for (int k = 0; k < 8; ++k) eight.insert(eight.end(), indices.begin(), indices.end());
+    EXPECT_EQ(
+        detail::keepCoveringTrianglesAvx2(eight.data(), eight.size(), v, scissor, out8.data()),
+        8 * kept);
+  }
+  return kept / 3;
 }
 
 }  // namespace
@@ -311,4 +323,199 @@ TEST(Coverage, AFewerSubPixelBitsWidenTheRadius) {
   EXPECT_GT(v4[0].radius, v8[0].radius);
   EXPECT_GE(v4[0].radius, 1.0 / 16);
   EXPECT_LT(v8[0].radius, 1.0 / 64);
+}
+
+namespace {
+
+// Window vertices as projectVertices makes them, chosen to meet the
+// arithmetic's edges: positions on and a rounding step off half-integers
+// (pixel centres) and integers, tiny and large radii, +inf radii (a vertex
+// not safely in front), and positions up to 2^21 pixels from the origin.
+WindowVertices hardVertices(std::mt19937_64& rng, size_t n) {
+  std::uniform_real_distribution<double> u(0, 1);
+  const float inf = std::numeric_limits<float>::infinity();
+  WindowVertices v(n);
+  double ox = 0, oy = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (i % 64 == 0) {  // clusters, each around its own spot
+      const double far = std::pow(2.0, u(rng) * 21);
+      ox = std::floor((u(rng) - 0.5) * far), oy = std::floor((u(rng) - 0.5) * far);
+    }
+    auto coord = [&](double o) {
+      double c = o + std::floor(u(rng) * 6);
+      const double kind = u(rng);
+      if (kind < 0.3)
+        c += 0.5;  // on a centre
+      else if (kind < 0.5)
+        c = std::nextafter(float(c + 0.5), inf);  // a float step off it
+      else if (kind < 0.6)
+        c = std::nextafter(float(c + 0.5), -inf);
+      else
+        c += u(rng);
+      return float(c);
+    };
+    const double kind = u(rng);
+    const float radius = kind < 0.03  ? inf
+                         : kind < 0.5 ? float(std::ldexp(1.0, -int(4 + u(rng) * 20)))
+                                      : float(u(rng) * 0.6);
+    v[i] = radius == inf ? WindowVertex{0.f, 0.f, inf, 0.f}
+                         : WindowVertex{coord(ox), coord(oy), radius, 0.f};
+  }
+  return v;
+}
+
+}  // namespace
+
+TEST(Coverage, TheAvx2PathKeepsExactlyWhatTheScalarLoopKeeps) {
+  if (!detail::haveAvx2()) GTEST_SKIP() << "this CPU has no AVX2";
+  std::mt19937_64 rng(20261206);
+  std::uniform_real_distribution<double> u(0, 1);
+  size_t kept_total = 0, total = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const size_t n = 1 + size_t(u(rng) * 300);
+    WindowVertices v = hardVertices(rng, n);
+    // Triangles of nearby vertices (as in a mesh), some with an index past
+    // the vertices, some past 2^31; a count that is no multiple of 24.
+    const size_t tris = size_t(u(rng) * 200);
+    std::vector<uint32_t> indices;
+    for (size_t t = 0; t < tris; ++t) {
+      const size_t first = size_t(u(rng) * double(n));
+      for (int k = 0; k < 3; ++k) {
+        uint32_t i = uint32_t(std::min(n - 1, first + size_t(u(rng) * 3)));
+        const double odd = u(rng);
+        if (odd < 0.01)
+          i = uint32_t(n + size_t(u(rng) * 3));
+        else if (odd < 0.015)
+          i = 0x80000000u + uint32_t(u(rng) * 5);
+        indices.push_back(i);
+      }
+    }
+    // Scissors near a cluster's spot (an infinite-radius vertex sits at
+    // the origin), some a single pixel or empty.
+    const WindowVertex& spot = v[size_t(u(rng) * double(n))];
+    const Rect scissor{int(std::floor(double(spot.x))) - int(u(rng) * 4),
+                       int(std::floor(double(spot.y))) - int(u(rng) * 4), int(u(rng) * 9),
+                       int(u(rng) * 9)};
+    std::vector<uint32_t> a(indices.size() + 1, 7u), b(indices.size() + 1, 7u);
+    const size_t na =
+        detail::keepCoveringTrianglesScalar(indices.data(), indices.size(), v, scissor, a.data());
+    const size_t nb =
+        detail::keepCoveringTrianglesAvx2(indices.data(), indices.size(), v, scissor, b.data());
+    ASSERT_EQ(na, nb) << "trial " << trial;
+    ASSERT_EQ(a, b) << "trial " << trial;  // the same triangles, and nothing written past them
+    kept_total += na / 3;
+    total += tris;
+  }
+  // Not vacuous: both some kept and some dropped.
+  EXPECT_GT(kept_total, total / 20) << kept_total << " of " << total;
+  EXPECT_LT(kept_total, total - total / 20) << kept_total << " of " << total;
+}
+
+namespace {
+
+// Whether the AVX2 path keeps the triangle (0, 1, 2) of `v`, given eight
+// times in one batch: all or none of the copies, or the test fails.
+bool avx2Keeps(const WindowVertices& v, Rect scissor) {
+  std::vector<uint32_t> eight, out(24);
+  for (int k = 0; k < 8; ++k) eight.insert(eight.end(), {0, 1, 2});
+  const size_t kept = detail::keepCoveringTrianglesAvx2(eight.data(), 24, v, scissor, out.data());
+  EXPECT_TRUE(kept == 0 || kept == 24) << kept;
+  return kept == 24;
+}
+bool scalarKeeps(const WindowVertices& v, Rect scissor) {
+  const uint32_t tri[3] = {0, 1, 2};
+  uint32_t out[3];
+  return detail::keepCoveringTrianglesScalar(tri, 3, v, scissor, out) == 3;
+}
+float floatAt(uint32_t bits) {
+  float f;
+  std::memcpy(&f, &bits, 4);
+  return f;
+}
+uint32_t bitsOf(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, 4);
+  return b;
+}
+
+}  // namespace
+
+// Where the decision flips as the error radius grows float by float (the
+// edge test's slack, the box's reach past a centre, the floor's rounding
+// just above a half-integer), both paths flip at the same float.
+TEST(Coverage, TheAvx2PathFlipsAtTheSameRadiusAsTheScalarLoop) {
+  if (!detail::haveAvx2()) GTEST_SKIP() << "this CPU has no AVX2";
+  std::mt19937_64 rng(1206);
+  std::uniform_real_distribution<double> u(0, 1);
+  int flips = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    // A triangle within a few pixels of the centre (0.5, 0.5) or, with a
+    // 2x2 scissor, of four centres; its corners on a 2^-24 grid near them.
+    const Rect scissor = trial % 3 == 0 ? Rect{0, 0, 2, 2} : Rect{0, 0, 1, 1};
+    WindowVertices v(3);
+    for (auto& w : v) {
+      const double spread = u(rng) < 0.5 ? 1e-6 : 3;
+      w.x = float(0.5 + std::ldexp(std::round((u(rng) - 0.5) * spread * 0x1p24), -24));
+      w.y = float(0.5 + std::ldexp(std::round((u(rng) - 0.5) * spread * 0x1p24), -24));
+    }
+    auto keeps = [&](uint32_t bits, bool avx2) {
+      for (auto& w : v) w.radius = floatAt(bits);
+      return avx2 ? avx2Keeps(v, scissor) : scalarKeeps(v, scissor);
+    };
+    // The smallest radius the scalar loop keeps, between 2^-40 and 4.
+    uint32_t lo = bitsOf(0x1p-40f), hi = bitsOf(4.f);
+    if (keeps(lo, false) || !keeps(hi, false)) continue;
+    while (hi - lo > 1) {
+      const uint32_t mid = lo + (hi - lo) / 2;
+      (keeps(mid, false) ? hi : lo) = mid;
+    }
+    ++flips;
+    for (uint32_t b = hi - 40; b <= hi + 40; ++b)
+      ASSERT_EQ(keeps(b, true), keeps(b, false))
+          << "trial " << trial << ", radius " << floatAt(b) << " (flip at " << floatAt(hi) << ")";
+  }
+  EXPECT_GT(flips, 150);
+}
+
+// The AVX2 projection gives the portable loop's window vertices bit for bit,
+// on random scenes (far from the origin, scaled, rotated) mixed with
+// vertices behind, at and barely in front of the eye, and non-finite ones.
+TEST(Coverage, TheAvx2ProjectionEqualsThePortableOneBitForBit) {
+  if (!detail::haveAvx2()) GTEST_SKIP() << "this CPU has no AVX2";
+  std::mt19937_64 rng(61206);
+  std::uniform_real_distribution<double> u(0, 1);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  size_t apart = 0, total = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    Scenario s = randomScenario(rng);
+    Mat4d mv = objectToEye(s.cam, s.object_to_world), proj = projectionMatrix(s.cam);
+    // Odd vertices in the object's frame: the eye itself, points near the
+    // eye plane, far behind, and non-finite coordinates.
+    Mat4d to_object;
+    ASSERT_TRUE(invertAffine(mv, &to_object));
+    auto eye_point = [&](double x, double y, double z) {
+      const Vec3d p = to_object.transformPoint({x, y, z});
+      s.positions.insert(s.positions.end(), {float(p.x), float(p.y), float(p.z)});
+    };
+    for (int k = 0; k < 20; ++k) {
+      const double z = std::ldexp(u(rng) - 0.5, -int(u(rng) * 30));
+      eye_point((u(rng) - 0.5) * 10, (u(rng) - 0.5) * 10, z);
+    }
+    eye_point(0, 0, 0);
+    s.positions.insert(s.positions.end(), {nan, 0.f, 0.f, inf, 1.f, 1.f, 0.f, -inf, 2.f});
+    const size_t count = s.positions.size() / 3 - size_t(u(rng) * 4);  // no multiple of 4
+    const WindowTransform t{mv, proj, s.width, s.height, s.bits};
+    WindowVertices a, b;
+    detail::projectVerticesScalar(s.positions.data(), count, t, &a);
+    detail::projectVerticesAvx2(s.positions.data(), count, t, &b);
+    ASSERT_EQ(a.size(), b.size());
+    ASSERT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(WindowVertex)), 0)
+        << "trial " << trial;
+    for (const WindowVertex& w : a) apart += w.radius == inf;
+    total += count;
+  }
+  // Both kinds of vertex were compared.
+  EXPECT_GT(apart, 200u);
+  EXPECT_LT(apart, total / 4);
 }
