@@ -36,7 +36,42 @@ struct Projector {
   double half_w, half_h, snap;
 };
 
-Projector projectorFor(const float* positions, size_t count, const WindowTransform& t) {
+// The largest finite magnitude of each coordinate (x, y, z) of `count`
+// vertices, 0 where none is finite.
+void largestMagnitudes(const float* positions, size_t count, float big[3]) {
+  big[0] = big[1] = big[2] = 0;
+  const float top = std::numeric_limits<float>::max();
+  for (size_t i = 0; i < count; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const float a = std::fabs(positions[3 * i + size_t(k)]);
+      big[k] = a > big[k] && a <= top ? a : big[k];
+    }
+}
+
+#if DMMR_COVERAGE_AVX2
+// largestMagnitudes eight vertices (24 floats, three registers) at a time:
+// a maximum does not depend on the order, so the result is the same.
+__attribute__((target("avx2"))) void largestMagnitudesAvx2(const float* positions, size_t count,
+                                                           float big[3]) {
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  const __m256 top = _mm256_set1_ps(std::numeric_limits<float>::max());
+  __m256 acc[3] = {_mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps()};
+  size_t i = 0;
+  for (; i + 8 <= count; i += 8)
+    for (int r = 0; r < 3; ++r) {
+      const __m256 a = _mm256_andnot_ps(sign, _mm256_loadu_ps(positions + 3 * i + 8 * size_t(r)));
+      // a <= top fails for infinities and NaN, which then count as 0.
+      acc[r] = _mm256_max_ps(acc[r], _mm256_and_ps(a, _mm256_cmp_ps(a, top, _CMP_LE_OQ)));
+    }
+  largestMagnitudes(positions + 3 * i, count - i, big);
+  alignas(32) float lanes[24];
+  for (int r = 0; r < 3; ++r) _mm256_store_ps(lanes + 8 * r, acc[r]);
+  for (int f = 0; f < 24; ++f) big[f % 3] = std::max(big[f % 3], lanes[f]);
+}
+#endif
+
+// `big`: largestMagnitudes of the draw's vertices.
+Projector projectorFor(const float big[3], const WindowTransform& t) {
   Projector P;
   double am[4][4], ap[3][4];  // the magnitudes
   for (int r = 0; r < 4; ++r)
@@ -61,13 +96,6 @@ Projector projectorFor(const float* positions, size_t count, const WindowTransfo
   // vertex's own would be at most as large, and the error it bounds is far
   // under the snapping step either way, so the radius hardly grows while
   // each vertex is spared half of its arithmetic.
-  float big[3] = {0, 0, 0};
-  const float top = std::numeric_limits<float>::max();
-  for (size_t i = 0; i < count; ++i)
-    for (int k = 0; k < 3; ++k) {
-      const float a = std::fabs(positions[3 * i + size_t(k)]);
-      big[k] = a > big[k] && a <= top ? a : big[k];
-    }
   double mag[4];
   for (int r = 0; r < 4; ++r)
     mag[r] = am[r][0] * big[0] + am[r][1] * big[1] + am[r][2] * big[2] + am[r][3];
@@ -201,13 +229,17 @@ namespace detail {
 void projectVerticesScalar(const float* positions, size_t count, const WindowTransform& t,
                            WindowVertices* out) {
   out->resize(count);
-  projectRange(positions, 0, count, projectorFor(positions, count, t), out->data());
+  float big[3];
+  largestMagnitudes(positions, count, big);
+  projectRange(positions, 0, count, projectorFor(big, t), out->data());
 }
 #if DMMR_COVERAGE_AVX2
 void projectVerticesAvx2(const float* positions, size_t count, const WindowTransform& t,
                          WindowVertices* out) {
   out->resize(count);
-  projectAvx2(positions, count, projectorFor(positions, count, t), out->data());
+  float big[3];
+  largestMagnitudesAvx2(positions, count, big);
+  projectAvx2(positions, count, projectorFor(big, t), out->data());
 }
 #endif
 }  // namespace detail
