@@ -28,10 +28,10 @@ source scripts/bench/lib.sh
 scene_of() {  # sets sc, path, w, h
   case $1 in
     skullmesh4)
-      [ -f out/bench/skullmesh4.osgb ] || $bin/dmmr-scenegen replicate \
+      [ -f out/bench/skullmesh4.osgb ] || "$bin"/dmmr-scenegen replicate \
         --input "$models/skull/skull.obj" --subdivide 5 --copies 4 --path around --frames 48 \
         -o out/bench/skullmesh4.osgb --walkthrough out/bench/skullmesh4.generated.path >/dev/null
-      [ -d out/bench/skullmesh4.scene ] || $bin/dmmr-preprocess out/bench/skullmesh4.osgb \
+      [ -d out/bench/skullmesh4.scene ] || "$bin"/dmmr-preprocess out/bench/skullmesh4.osgb \
         -o out/bench/skullmesh4.scene --no-progress >/dev/null
       sc=out/bench/skullmesh4.scene path=walkthroughs/skullmesh4.path w=512 h=512
       ;;
@@ -49,11 +49,11 @@ scene_of() {  # sets sc, path, w, h
   esac
 }
 retry() { "$@" || "$@"; }
-render_of() {  # mode: the dmmr-render command line for it
+render_of() {  # mode: sets cmd, the dmmr-render command line for it (an array: paths may hold spaces)
   if [ "$1" = off ] && [ -n "$base" ]; then
-    echo "$base/dmmr-render"
+    cmd=("$base/dmmr-render")
   else
-    echo "$bin/dmmr-render --triangle-cull $1"
+    cmd=("$bin/dmmr-render" --triangle-cull "$1")
   fi
 }
 for r in $(seq 1 "$reps"); do
@@ -62,16 +62,16 @@ for r in $(seq 1 "$reps"); do
   for s in $scenes; do
     scene_of "$s"
     view=(--scene "$sc" --walkthrough "$path" --width "$w" --height "$h" --no-progress)
-    $bin/dmmr-reference "${view[@]}" --out "$out/$s-ref" --stats "$out/$s-ref-r$r.csv"
+    "$bin"/dmmr-reference "${view[@]}" --out "$out/$s-ref" --stats "$out/$s-ref-r$r.csv"
     for m in $order; do
-      # shellcheck disable=SC2046
-      retry "${mpi[@]}" $(render_of "$m") "${view[@]}" --out "$out/$s-1-$m" \
+      render_of "$m"
+      retry "${mpi[@]}" "${cmd[@]}" "${view[@]}" --out "$out/$s-1-$m" \
         --stats "$out/$s-1-$m-r$r.csv" >/dev/null 2>&1
       diff_frames "$out/$s-ref" "$out/$s-1-$m" "$out/$s-1-$m-r$r.cmp.csv"
     done
     for m in $order; do
-      # shellcheck disable=SC2046
-      LP_NUM_THREADS=1 retry "${launch[@]}" -np 5 -x LP_NUM_THREADS $(render_of "$m") "${view[@]}" \
+      render_of "$m"
+      LP_NUM_THREADS=1 retry "${launch[@]}" -np 5 -x LP_NUM_THREADS "${cmd[@]}" "${view[@]}" \
         --out "$out/$s-4-$m" --stats "$out/$s-4-$m-r$r.csv" >/dev/null 2>&1
       diff_frames "$out/$s-ref" "$out/$s-4-$m" "$out/$s-4-$m-r$r.cmp.csv"
     done
