@@ -22,10 +22,6 @@ namespace {
 constexpr double kU = 1.0 / (1 << 24);
 constexpr double kDot = 8 * kU;
 
-}  // namespace
-
-namespace {
-
 // What projectVertices needs of a draw: the transform in double, the error
 // bounds of its clip coordinates (one for all the vertices) and the
 // viewport.
