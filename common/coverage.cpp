@@ -545,16 +545,19 @@ __attribute__((target("avx2"))) size_t keepCoveringTrianglesAvx2(const uint32_t*
         half_keep |= b.one & reachesTheCentre4(tri, b);
       }
       // Two to kExactCentres centres (rarer): the portable test, lane by lane.
-      for (int few = b.few & lanes; few; few &= few - 1) {
-        const int k = __builtin_ctz(unsigned(few));
+      if (int few = b.few & lanes) {
         alignas(32) double c[4][4];
+        alignas(16) float rs[4];
         _mm256_store_pd(c[0], b.cx0), _mm256_store_pd(c[1], b.cx1);
         _mm256_store_pd(c[2], b.cy0), _mm256_store_pd(c[3], b.cy1);
-        const uint32_t* tri = indices + t + 3 * size_t(4 * h + k);
-        const float rk = max3(v[tri[0]].radius, v[tri[1]].radius, v[tri[2]].radius);
-        if (reachesACentre(v[tri[0]], v[tri[1]], v[tri[2]], double(rk), int64_t(c[0][k]),
-                           int64_t(c[1][k]), int64_t(c[2][k]), int64_t(c[3][k])))
-          half_keep |= 1 << k;
+        _mm_store_ps(rs, halfOf(r, h));
+        for (; few; few &= few - 1) {
+          const int k = __builtin_ctz(unsigned(few));
+          const uint32_t* tri = indices + t + 3 * size_t(4 * h + k);
+          if (reachesACentre(v[tri[0]], v[tri[1]], v[tri[2]], double(rs[k]), int64_t(c[0][k]),
+                             int64_t(c[1][k]), int64_t(c[2][k]), int64_t(c[3][k])))
+            half_keep |= 1 << k;
+        }
       }
       keep |= (half_keep & lanes) << 4 * h;
     }

@@ -8,6 +8,7 @@
 // it may, so that it is not vacuously safe.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -427,16 +428,6 @@ bool scalarKeeps(const WindowVertices& v, Rect scissor) {
   uint32_t out[3];
   return detail::keepCoveringTrianglesScalar(tri, 3, v, scissor, out) == 3;
 }
-float floatAt(uint32_t bits) {
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
-uint32_t bitsOf(float f) {
-  uint32_t b;
-  std::memcpy(&b, &f, 4);
-  return b;
-}
 
 }  // namespace
 
@@ -459,11 +450,11 @@ TEST(Coverage, TheAvx2PathFlipsAtTheSameRadiusAsTheScalarLoop) {
       w.y = float(0.5 + std::ldexp(std::round((u(rng) - 0.5) * spread * 0x1p24), -24));
     }
     auto keeps = [&](uint32_t bits, bool avx2) {
-      for (auto& w : v) w.radius = floatAt(bits);
+      for (auto& w : v) w.radius = std::bit_cast<float>(bits);
       return avx2 ? avx2Keeps(v, scissor) : scalarKeeps(v, scissor);
     };
     // The smallest radius the scalar loop keeps, between 2^-40 and 4.
-    uint32_t lo = bitsOf(0x1p-40f), hi = bitsOf(4.f);
+    uint32_t lo = std::bit_cast<uint32_t>(0x1p-40f), hi = std::bit_cast<uint32_t>(4.f);
     if (keeps(lo, false) || !keeps(hi, false)) continue;
     while (hi - lo > 1) {
       const uint32_t mid = lo + (hi - lo) / 2;
@@ -472,7 +463,8 @@ TEST(Coverage, TheAvx2PathFlipsAtTheSameRadiusAsTheScalarLoop) {
     ++flips;
     for (uint32_t b = hi - 40; b <= hi + 40; ++b)
       ASSERT_EQ(keeps(b, true), keeps(b, false))
-          << "trial " << trial << ", radius " << floatAt(b) << " (flip at " << floatAt(hi) << ")";
+          << "trial " << trial << ", radius " << std::bit_cast<float>(b) << " (flip at "
+          << std::bit_cast<float>(hi) << ")";
   }
   EXPECT_GT(flips, 150);
 }
