@@ -4,6 +4,7 @@
 
 #include "cli_options.h"
 #include "error.h"
+#include "memory_policy.h"
 #include "reference.h"
 
 int main(int argc, char** argv) {
@@ -20,6 +21,8 @@ int main(int argc, char** argv) {
                  "their stats rows are kept)");
   dmmr::addFlushOption(app, &o.flush_triangles);
   dmmr::addCacheOptions(app, o.cache);
+  bool keepMemory = true;
+  dmmr::addMemoryOption(app, &keepMemory);
   dmmr::addConfigOption(app);
   app.add_flag("--exact-visible", o.exact_visible,
                "add the exactly visible objects and triangles (object-id render) to --stats");
@@ -28,6 +31,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return dmmr::exitParse(app, e);
   }
+  if (keepMemory) dmmr::keepFreedMemory();
   try {
     o.scene = paths.scene;
     o.walkthrough = paths.walkthrough;

@@ -43,6 +43,15 @@ inline void addSwitchOption(CLI::App& app, const std::string& name, bool* value,
       ->check(CLI::IsMember({"on", "off"}));
 }
 
+// --keep-freed-memory on|off into `*keep` (default on): whether the tool
+// calls keepFreedMemory() (memory_policy.h) at start-up.
+inline void addMemoryOption(CLI::App& app, bool* keep) {
+  addSwitchOption(app, "--keep-freed-memory", keep,
+                  "keep freed memory in malloc's heaps for reuse rather than return it to the "
+                  "kernel, so that each frame does not page-fault its buffers in afresh; "
+                  "resident memory stays at its peak");
+}
+
 // --flush-triangles auto|N into `*triangles` (-1 for auto): how the
 // renderer flushes its drawing (Renderer::setFlushEvery; auto: the driver's
 // default, defaultFlushTriangles). `*triangles` holds the tool's default.

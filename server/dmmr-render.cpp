@@ -10,6 +10,7 @@
 #include "cli_options.h"
 #include "client.h"
 #include "error.h"
+#include "memory_policy.h"
 #include "protocol.h"
 #include "server.h"
 
@@ -183,6 +184,8 @@ int main(int argc, char** argv) {
                  "raytrace --reflections: objects that mirror, by node name (glob; an object "
                  "matches when its node or any node above it does)");
   app.add_option("--glass", c.glass, "raytrace --reflections: objects that refract, by node name");
+  bool keepMemory = true;
+  dmmr::addMemoryOption(app, &keepMemory);
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -291,6 +294,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 
+  if (keepMemory) dmmr::keepFreedMemory();
   int status = 0;
   try {
     dmmr::Comm comm(&argc, &argv);
