@@ -112,6 +112,16 @@ int main(int argc, char** argv) {
                  "over the frame so that a stale forecast's error is shared; never changes a "
                  "pixel (default 1)")
       ->check(CLI::Range(1, 16));
+  app.add_option("--pool-share", s.pool_share,
+                 "frustum division: leave this share of each frame's planned weight out of "
+                 "the clients' regions, in parts handed out on demand to whichever client is "
+                 "free first, so that what the forecast got wrong is shared out within the "
+                 "frame (0: off, the default); never changes a pixel")
+      ->check(CLI::Range(0.0, 0.9));
+  app.add_option("--pool-parts", s.pool_parts,
+                 "frustum division with --pool-share: the pool's parts (0, the default: twice "
+                 "the clients)")
+      ->check(CLI::Range(0, 4096));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
       ->delimiter(',')
@@ -274,6 +284,11 @@ int main(int argc, char** argv) {
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
+    return 1;
+  }
+  if (s.pool_share > 0 && s.regions_per_client > 1) {
+    if (!quiet)
+      std::fprintf(stderr, "dmmr-render: --pool-share cannot be used with --regions-per-client\n");
     return 1;
   }
   if (s.regions_per_client > 1 && s.cost_grid) {

@@ -1,5 +1,6 @@
 #include "plan.h"
 
+#include "error.h"
 #include "tiles.h"
 
 #include <algorithm>
@@ -303,7 +304,9 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 }  // namespace
 
 FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int clients,
-                             int regions_per_client) const {
+                             int regions_per_client, double pool_share, int pool_parts) const {
+  const bool pooled = pool_share > 0 && pool_parts > 0;
+  DMMR_CHECK(!pooled || (pool_share < 1 && regions_per_client == 1));
   using Clock = std::chrono::steady_clock;
   FramePlan plan;
   // The CPU interval nested in the wall one (t0 first, t2 last), so that the
@@ -337,7 +340,19 @@ FramePlan FramePlanner::plan(const Camera& camera, int width, int height, int cl
       while (in_flight_.size() > kMaxInFlight) in_flight_.erase(in_flight_.begin());
     }
   }
-  plan.regions = divideFrame(items, Rect{0, 0, width, height}, clients * regions_per_client, costs);
+  const int regions = clients * regions_per_client;
+  if (pooled) {  // the pool is one region more, its share of the speeds
+    if (costs.speeds.empty()) costs.speeds.assign(size_t(regions), 1.0);
+    double sum = 0;
+    for (double sp : costs.speeds) sum += sp;
+    costs.speeds.push_back(sum * pool_share / (1 - pool_share));
+  }
+  plan.regions = divideFrame(items, Rect{0, 0, width, height}, regions + (pooled ? 1 : 0), costs);
+  if (pooled) {
+    const Rect rest = plan.regions.back().rect;
+    plan.regions.pop_back();
+    plan.pool = divideFrame(items, rest, pool_parts, DivisionCosts{costs.pixel_weight, {}});
+  }
   for (const Region& r : plan.regions)
     plan.planned.push_back(double(r.weight) + costs.pixel_weight * double(r.rect.area()));
   plan.plan_cpu_ms = threadCpuMs() - c0 + spawned;

@@ -24,6 +24,10 @@ struct FramePlan {
   // `regions_per_client` per client, tiling the frame; region j goes to
   // client j % clients (regionClient).
   std::vector<Region> regions;
+  // With a pool (plan's pool_share > 0): the rest of the frame, in parts
+  // handed out on demand (FrameJob to whichever client is free first); the
+  // regions and these parts tile the frame together.
+  std::vector<Region> pool;
   uint64_t objects_in_frustum = 0;
   uint64_t triangles_in_frustum = 0;
   double cull_ms = 0;
@@ -132,8 +136,16 @@ class FramePlanner {
   // gets wrong in one part of the frame (a copy that came near, a hidden
   // area that opened) is then shared by all clients instead of falling on
   // the one whose region it is; the price is more straddling objects.
+  //
+  // A pool (`pool_share` in (0, 1), `pool_parts` >= 1; one region a client):
+  // the division makes one region more, whose share of the weight is
+  // `pool_share` of the whole (the clients share the rest by their speeds),
+  // and splits it into `pool_parts` parts of about equal weight
+  // (FramePlan::pool). Dealt on demand, the parts go to the clients that
+  // finish their regions first, so the part of a frame's work that the
+  // forecast got wrong is shared out when it shows, not three frames later.
   FramePlan plan(const Camera& camera, int width, int height, int clients,
-                 int regions_per_client = 1) const;
+                 int regions_per_client = 1, double pool_share = 0, int pool_parts = 0) const;
   TilePlan planTiles(const Camera& camera, int width, int height, int tile_w, int tile_h) const;
 
   // Division weights from what the clients drew: an object drawn in one of

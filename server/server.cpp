@@ -140,7 +140,7 @@ class Assembler {
   }
 
   // Called (on the assembler thread) after each sub-frame from `client`.
-  void onSubFrame(std::function<void(int client, uint32_t frame)> f) {
+  void onSubFrame(std::function<void(int client, uint32_t frame, const Rect& region)> f) {
     on_sub_frame_ = std::move(f);
   }
 
@@ -284,7 +284,7 @@ class Assembler {
     for (const SubFrame& sf : decodeSubFrames(m.bytes)) {
       accept(m.source, sf);
       // After a failure no more tiles go out: the run is winding down.
-      if (on_sub_frame_ && !failed()) on_sub_frame_(m.source, sf.frame);
+      if (on_sub_frame_ && !failed()) on_sub_frame_(m.source, sf.frame, sf.region);
     }
   }
 
@@ -462,7 +462,7 @@ class Assembler {
   const int clients_;
   const size_t frames_;
   FramePlanner* planner_;
-  std::function<void(int, uint32_t)> on_sub_frame_;
+  std::function<void(int, uint32_t, const Rect&)> on_sub_frame_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::map<uint32_t, FrameRecord> pending_;
@@ -496,15 +496,16 @@ class TileDispatcher {
     pump();
   }
 
-  // `client` (1-based) returned a sub-frame of `frame`: its oldest tile in
-  // flight when that is one of this dealer's (clients answer in order; under
-  // --balance auto other strategies' jobs come and go between drained
-  // blocks, and theirs are not this dealer's to count).
-  void returned(int client, uint32_t frame) {
+  // `client` (1-based) returned the sub-frame of `region` of `frame`: its
+  // oldest tile in flight when that is one of this dealer's (clients answer
+  // in order; under --balance auto other strategies' jobs come and go
+  // between drained blocks, and a pool's client also returns its own region
+  // of the same frame: those are not this dealer's to count).
+  void returned(int client, uint32_t frame, const Rect& region) {
     std::lock_guard<std::mutex> lock(mu_);
     auto& given = given_[size_t(client - 1)];
-    if (given.empty() || given.front().second != frame) return;
-    pool_.done(client - 1, given.front().first);
+    if (given.empty() || given.front().frame != frame || !(given.front().region == region)) return;
+    pool_.done(client - 1, given.front().tile);
     given.pop_front();
     pump();
   }
@@ -516,7 +517,7 @@ class TileDispatcher {
         auto it = jobs_.find(id);
         assembler_.owe(it->second.frame, k + 1);
         comm_.send(k + 1, Tag::Job, encodeJob(it->second));
-        given_[size_t(k)].push_back({id, it->second.frame});
+        given_[size_t(k)].push_back({id, it->second.frame, it->second.region});
         jobs_.erase(it);
       }
   }
@@ -526,8 +527,12 @@ class TileDispatcher {
   std::mutex mu_;
   TilePool pool_;
   std::map<uint32_t, FrameJob> jobs_;  // by pool index, until sent
-  // Per client: (tile, frame) in the order sent.
-  std::vector<std::deque<std::pair<uint32_t, uint32_t>>> given_;
+  // Per client: the tiles in the order sent.
+  struct Given {
+    uint32_t tile, frame;
+    Rect region;
+  };
+  std::vector<std::deque<Given>> given_;
 };
 
 // --balance auto: the median round trip of a 1 KiB message to each client,
@@ -727,7 +732,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   Assembler assembler(comm, opts, clients, frames, opts.visible_weights ? &planner : nullptr, *csv,
                       hub.get(), division_log.get());
   TileDispatcher dispatcher(comm, assembler, clients, opts.tile_window);
-  assembler.onSubFrame([&](int client, uint32_t frame) { dispatcher.returned(client, frame); });
+  assembler.onSubFrame([&](int client, uint32_t frame, const Rect& region) {
+    dispatcher.returned(client, frame, region);
+  });
   std::thread assembling([&] {
     runGuarded([&] { assembler.run(); },
                [&](const std::string& what) { assembler.markFailed("server: " + what); });
@@ -775,7 +782,9 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       std::vector<std::pair<int, FrameJob>> jobs;
       if (balance == Balance::Frustum) {
         const int per = opts.regions_per_client;
-        FramePlan plan = planner.plan(cam, v.width, v.height, clients, per);
+        const int parts = opts.pool_parts > 0 ? opts.pool_parts : 2 * clients;
+        FramePlan plan = planner.plan(cam, v.width, v.height, clients, per, opts.pool_share,
+                                      opts.pool_share > 0 ? parts : 0);
         rec.cull_ms = plan.cull_ms;
         rec.divide_ms = plan.divide_ms;
         rec.plan_cpu_ms = plan.plan_cpu_ms;
@@ -805,6 +814,14 @@ int runServer(Comm& comm, const ServerOptions& opts) {
           jobs.back().second.ray_stride = uint8_t(stride);
           // A client's sub-frames go back in one batch, after its last region.
           jobs.back().second.flush = j + size_t(clients) >= plan.regions.size();
+        }
+        for (Region& part : plan.pool) {  // to whichever client is free first
+          jobs.push_back(
+              {-1,
+               FrameJob{f, cam, v.width, v.height, part.rect, std::move(part.objects), true, {}}});
+          if (opts.visible_weights)
+            jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
+          jobs.back().second.ray_stride = uint8_t(stride);
         }
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
@@ -838,20 +855,23 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       assembler.begin(f, std::move(rec), std::move(owed), int(jobs.size()));
       if (injectedServerFault(("send:" + std::to_string(f)).c_str()))
         throw Error("fault injected by DMMR_INJECT_FAULT sending frame " + std::to_string(f));
-      if (balance == Balance::TilesDynamic) {
-        std::vector<FrameJob> pool;
-        for (auto& [k, j] : jobs) pool.push_back(std::move(j));
-        dispatcher.add(std::move(pool));
-      } else {
-        // A frame of static tiles is many jobs per client: stop at a failure
-        // rather than send the rest to clients that are winding down.
-        for (auto& [k, j] : jobs) {
-          if (assembler.failed()) break;
-          assembler.sendingTo(k);
-          comm.send(k, Tag::Job, encodeJob(j));
+      // A frame of static tiles is many jobs per client: stop at a failure
+      // rather than send the rest to clients that are winding down. The
+      // jobs for no client in particular (dynamic tiles, a pool's parts) go
+      // to the dispatcher after the others, so that each client's own
+      // region comes first in its queue.
+      std::vector<FrameJob> pool;
+      for (auto& [k, j] : jobs) {
+        if (k < 0) {
+          pool.push_back(std::move(j));
+          continue;
         }
-        assembler.sendingTo(0);
+        if (assembler.failed()) break;
+        assembler.sendingTo(k);
+        comm.send(k, Tag::Job, encodeJob(j));
       }
+      assembler.sendingTo(0);
+      if (!pool.empty() && !assembler.failed()) dispatcher.add(std::move(pool));
       assembler.setSendMs(f, msBetween(ts, Clock::now()));
     }
   };

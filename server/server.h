@@ -45,6 +45,13 @@ struct ServerOptions {
   // client's regions are spread over the frame (FramePlanner::plan). Moves
   // split lines only: never changes a pixel. Not with cost_grid.
   int regions_per_client = 1;
+  // Frustum division with a pool (FramePlanner::plan): this share of each
+  // frame's weight is left out of the clients' regions and split into
+  // pool_parts parts (0: twice the clients), dealt on demand like
+  // tiles-dynamic, tile_window in flight per client. 0: no pool. Moves split
+  // lines only: never changes a pixel. Not with regions_per_client > 1.
+  double pool_share = 0;
+  int pool_parts = 0;
   // With fitted weights and more than one frame in flight: a client whose
   // time ran above the clients' mean gets smaller shares until it has caught
   // up (FramePlanner::setCatchUp).

@@ -695,6 +695,34 @@ TEST(Balance, SeveralRegionsAClientKeepFramesExact) {
   EXPECT_NE(log.find("--cost-grid needs one region a client"), std::string::npos) << log;
 }
 
+// --pool-share: part of each frame is dealt on demand in parts, beside the
+// clients' own regions; frames stay exact, every pixel is read back once
+// (the regions and the parts tile the frame), and a pool with several
+// regions a client is refused by name.
+TEST(Balance, APoolDealtOnDemandKeepsFramesExact) {
+  SmallScene& s = smallScene();
+  const int clients = 3;
+  std::string out = s.dir / "pool";
+  s.render(clients, out,
+           "--pool-share 0.3 --pool-parts 5 --tiles-in-flight 1 --stats " + out + ".csv");
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  ASSERT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
+  ASSERT_EQ(stats.size(), 4u);
+  for (test::CsvRow& row : stats) {
+    double bytes = 0;
+    for (int k = 1; k <= clients; ++k) bytes += row["c" + std::to_string(k) + "_bytes_raw"];
+    EXPECT_EQ(bytes, 160 * 120 * 3) << row["frame"];
+  }
+  int status = 0;
+  std::string log =
+      s.render(clients, s.dir / "pool-regions", "--pool-share 0.3 --regions-per-client 2", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("--pool-share cannot be used with --regions-per-client"), std::string::npos)
+      << log;
+}
+
 // An exception of a type that is not std::exception escaping a stage (as a
 // third-party library may throw) ends the run with a message, not with
 // std::terminate of the stage's thread.

@@ -292,6 +292,72 @@ TEST(FramePlanner, SeveralRegionsAClientAreSpreadOverTheFrame) {
     }
 }
 
+// --pool-share: the clients' regions and the pool's parts tile the frame
+// together, and each holds every culled object whose footprint meets it, so
+// that frames stay exact whichever client draws a part.
+TEST(FramePlanner, APoolsPartsAndTheRegionsTileTheFrameAndHoldEveryObjectTheyMeet) {
+  Rng rng(44);
+  Scene scene = gridScene(rng, 30, 30);
+  const int width = 640, height = 480;
+  const Rect frame{0, 0, width, height};
+  FramePlanner planner(scene);
+  int pooled = 0;
+  for (int view = 0; view < 60; ++view) {
+    Camera camera = randomCamera(rng, scene);
+    const int clients = rng.integer(1, 6), parts = rng.integer(1, 9);
+    const double share = rng.real(0.05, 0.9);
+    SCOPED_TRACE(::testing::Message() << "view " << view << " " << camera << ", " << clients
+                                      << " clients, pool " << share << " in " << parts);
+    FramePlan plan = planner.plan(camera, width, height, clients, 1, share, parts);
+    ASSERT_EQ(plan.regions.size(), size_t(clients));
+    ASSERT_EQ(plan.pool.size(), size_t(parts));
+    ASSERT_EQ(plan.planned.size(), plan.regions.size());
+    std::vector<Region> all = plan.regions;
+    all.insert(all.end(), plan.pool.begin(), plan.pool.end());
+    ASSERT_TRUE(test::tilesFrame(all, frame, clients + parts));
+    std::vector<uint32_t> culled;
+    CullStats cs;
+    cullObjects(scene.skeleton, scene.objects, frustumPlanes(camera), &culled, &cs);
+    std::vector<Footprint> items;
+    Footprint f;
+    for (uint32_t i : culled)
+      if (footprint(scene.objects[i], i, camera, width, height, &f)) items.push_back(f);
+    EXPECT_TRUE(test::assignsObjects(items, all));
+    for (const Region& r : plan.pool) pooled += !r.objects.empty();
+  }
+  EXPECT_GT(pooled, 30);  // the pools held work, not only empty rectangles
+}
+
+// The pool's share of the frame's weight follows pool_share; without a pool
+// the plan is the plain division.
+TEST(FramePlanner, ThePoolTakesItsShareOfTheFramesWeight) {
+  Rng rng(45);
+  Scene scene = gridScene(rng, 30, 30);
+  FramePlanner planner(scene);
+  const Camera camera = topDownCamera();
+  auto poolFraction = [&](double share) {
+    FramePlan plan = planner.plan(camera, 640, 480, 3, 1, share, 4);
+    double pool = 0, regions = 0;
+    for (const Region& r : plan.pool) pool += double(r.weight);
+    for (const Region& r : plan.regions) regions += double(r.weight);
+    return pool / (pool + regions);
+  };
+  double previous = 0;
+  for (double share : {0.1, 0.25, 0.5}) {
+    double got = poolFraction(share);
+    // Objects straddling a cut count on both sides: the fraction is near the
+    // share, not equal to it.
+    EXPECT_NEAR(got, share, 0.1) << "share " << share;
+    EXPECT_GT(got, previous) << "share " << share;
+    previous = got;
+  }
+  FramePlan plain = planner.plan(camera, 640, 480, 3);
+  EXPECT_TRUE(plain.pool.empty());
+  FramePlan unpooled = planner.plan(camera, 640, 480, 3, 1, 0, 4);
+  EXPECT_TRUE(unpooled.pool.empty());
+  EXPECT_EQ(unpooled.regions, plain.regions);
+}
+
 TEST(FramePlanner, RasterCountsAtMostOneTriangleAFootprintPixel) {
   Rng rng(39);
   Scene scene = gridScene(rng, 4, 4);
