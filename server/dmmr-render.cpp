@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 0.9));
   app.add_option("--pool-parts", s.pool_parts,
                  "frustum division with --pool-share: the pool's parts (0, the default: twice "
-                 "the clients)")
+                 "the clients), dealt --tiles-in-flight at a time a client (1 unless given)")
       ->check(CLI::Range(0, 4096));
   app.add_option("--query-runs", c.visibility.run_sizes,
                  "hierarchical query rounds: run sizes, decreasing, ending at 1")
@@ -286,6 +286,9 @@ int main(int argc, char** argv) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
     return 1;
   }
+  // A pool's parts are twice the clients by default: with two in flight a
+  // client, every part would be handed out at once, none on demand.
+  if (s.pool_share > 0 && app.count("--tiles-in-flight") == 0) s.tile_window = 1;
   if (s.pool_share > 0 && s.regions_per_client > 1) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --pool-share cannot be used with --regions-per-client\n");

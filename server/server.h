@@ -48,7 +48,8 @@ struct ServerOptions {
   // Frustum division with a pool (FramePlanner::plan): this share of each
   // frame's weight is left out of the clients' regions and split into
   // pool_parts parts (0: twice the clients), dealt on demand like
-  // tiles-dynamic, tile_window in flight per client. 0: no pool. Moves split
+  // tiles-dynamic, tile_window in flight per client (dmmr-render makes that 1
+  // for a pool unless told otherwise). 0: no pool. Moves split
   // lines only: never changes a pixel. Not with regions_per_client > 1.
   double pool_share = 0;
   int pool_parts = 0;
