@@ -1,6 +1,6 @@
 #include "memory_policy.h"
 
-#include <cstdlib>  // defines __GLIBC__ on glibc, which the test below needs
+#include <cstdlib>  // defines __GLIBC__ on glibc, which the #if below needs
 
 #if defined(__GLIBC__)
 #include <malloc.h>

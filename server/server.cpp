@@ -780,6 +780,13 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       planner.planningFrame(f);
       // Each job, with the client it goes to (-1: the dispatcher decides).
       std::vector<std::pair<int, FrameJob>> jobs;
+      // A job for `rect` drawing `objects` (flushed unless told otherwise).
+      auto makeJob = [&](const Rect& rect, std::vector<uint32_t>&& objects) {
+        FrameJob j{f, cam, v.width, v.height, rect, std::move(objects), true, {}};
+        if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
+        j.ray_stride = uint8_t(stride);
+        return j;
+      };
       if (balance == Balance::Frustum) {
         const int per = opts.regions_per_client;
         const int parts = opts.pool_parts > 0 ? opts.pool_parts : 2 * clients;
@@ -801,28 +808,13 @@ int runServer(Comm& comm, const ServerOptions& opts) {
           rec.planned[size_t(k)].planned += plan.planned[j];
           if (division_log)
             rec.forecasts[size_t(k)] += planner.forecast(cam, v.width, v.height, plan.regions[j]);
-          jobs.push_back({k + 1, FrameJob{f,
-                                          cam,
-                                          v.width,
-                                          v.height,
-                                          plan.regions[j].rect,
-                                          std::move(plan.regions[j].objects),
-                                          true,
-                                          {}}});
-          if (opts.visible_weights)
-            jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
-          jobs.back().second.ray_stride = uint8_t(stride);
+          jobs.push_back(
+              {k + 1, makeJob(plan.regions[j].rect, std::move(plan.regions[j].objects))});
           // A client's sub-frames go back in one batch, after its last region.
           jobs.back().second.flush = j + size_t(clients) >= plan.regions.size();
         }
-        for (Region& part : plan.pool) {  // to whichever client is free first
-          jobs.push_back(
-              {-1,
-               FrameJob{f, cam, v.width, v.height, part.rect, std::move(part.objects), true, {}}});
-          if (opts.visible_weights)
-            jobs.back().second.hints = planner.drawnLately(jobs.back().second.objects);
-          jobs.back().second.ray_stride = uint8_t(stride);
-        }
+        for (Region& part : plan.pool)  // to whichever client is free first
+          jobs.push_back({-1, makeJob(part.rect, std::move(part.objects))});
       } else {
         TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
         rec.cull_ms = plan.cull_ms;
@@ -830,13 +822,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         rec.plan_cpu_ms = plan.plan_cpu_ms;
         rec.objects = plan.objects_in_frustum;
         rec.triangles = plan.triangles_in_frustum;
-        auto job = [&](size_t t) {
-          FrameJob j{f,    cam, v.width, v.height, plan.tiles[t], std::move(plan.objects[t]),
-                     true, {}};
-          if (opts.visible_weights) j.hints = planner.drawnLately(j.objects);
-          j.ray_stride = uint8_t(stride);
-          return j;
-        };
+        auto job = [&](size_t t) { return makeJob(plan.tiles[t], std::move(plan.objects[t])); };
         if (balance == Balance::TilesStatic) {
           auto dealt = dealTiles(plan.tiles.size(), plan.columns, clients, opts.tile_order);
           for (int k = 0; k < clients; ++k)

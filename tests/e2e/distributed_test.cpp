@@ -667,6 +667,31 @@ TEST(Balance, TheDivisionLogSetsTheForecastBesideWhatEachClientDid) {
   EXPECT_GT(lately, 0u) << "no forecast ever counted what the clients drew";
 }
 
+namespace {
+
+// Renders the small scene with `clients` clients and `options` into `out`
+// (stats in out.csv), then checks every frame against the reference (zero
+// differing pixels) and that the clients read back every pixel exactly once
+// a frame. Returns the stats rows.
+std::vector<test::CsvRow> renderExactReadingEachPixelOnce(SmallScene& s, int clients,
+                                                          const std::string& out,
+                                                          const std::string& options) {
+  s.render(clients, out, options + " --stats " + out + ".csv");
+  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
+  EXPECT_EQ(diffs.size(), 4u);
+  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
+  EXPECT_EQ(stats.size(), 4u);
+  for (test::CsvRow& row : stats) {
+    double bytes = 0;
+    for (int k = 1; k <= clients; ++k) bytes += row["c" + std::to_string(k) + "_bytes_raw"];
+    EXPECT_EQ(bytes, 160 * 120 * 3) << row["frame"];
+  }
+  return stats;
+}
+
+}  // namespace
+
 // --regions-per-client: each client draws several regions a frame, sent back
 // in one batch; frames stay exact, a client's stats add its regions up (its
 // pixels are a share of the frame's, all of them together the frame), and
@@ -675,18 +700,9 @@ TEST(Balance, SeveralRegionsAClientKeepFramesExact) {
   SmallScene& s = smallScene();
   const int clients = 3;
   std::string out = s.dir / "regions-per-client";
-  s.render(clients, out,
-           "--regions-per-client 3 --stats " + out + ".csv --division-log " + out + ".div.csv");
-  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
-  ASSERT_EQ(diffs.size(), 4u);
-  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
-  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
+  std::vector<test::CsvRow> stats = renderExactReadingEachPixelOnce(
+      s, clients, out, "--regions-per-client 3 --division-log " + out + ".div.csv");
   ASSERT_EQ(stats.size(), 4u);
-  for (test::CsvRow& row : stats) {
-    double bytes = 0;
-    for (int k = 1; k <= clients; ++k) bytes += row["c" + std::to_string(k) + "_bytes_raw"];
-    EXPECT_EQ(bytes, 160 * 120 * 3) << row["frame"];
-  }
   EXPECT_EQ(test::readCsv(out + ".div.csv").size(), stats.size() * clients);
   int status = 0;
   std::string log =
@@ -702,19 +718,8 @@ TEST(Balance, SeveralRegionsAClientKeepFramesExact) {
 TEST(Balance, APoolDealtOnDemandKeepsFramesExact) {
   SmallScene& s = smallScene();
   const int clients = 3;
-  std::string out = s.dir / "pool";
-  s.render(clients, out,
-           "--pool-share 0.3 --pool-parts 5 --tiles-in-flight 1 --stats " + out + ".csv");
-  std::vector<FrameDiff> diffs = compareDirectories(s.reference, out);
-  ASSERT_EQ(diffs.size(), 4u);
-  for (const FrameDiff& d : diffs) EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
-  std::vector<test::CsvRow> stats = test::readCsv(out + ".csv");
-  ASSERT_EQ(stats.size(), 4u);
-  for (test::CsvRow& row : stats) {
-    double bytes = 0;
-    for (int k = 1; k <= clients; ++k) bytes += row["c" + std::to_string(k) + "_bytes_raw"];
-    EXPECT_EQ(bytes, 160 * 120 * 3) << row["frame"];
-  }
+  renderExactReadingEachPixelOnce(s, clients, s.dir / "pool",
+                                  "--pool-share 0.3 --pool-parts 5 --tiles-in-flight 1");
   int status = 0;
   std::string log =
       s.render(clients, s.dir / "pool-regions", "--pool-share 0.3 --regions-per-client 2", &status);
