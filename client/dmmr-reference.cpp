@@ -21,8 +21,8 @@ int main(int argc, char** argv) {
                  "their stats rows are kept)");
   dmmr::addFlushOption(app, &o.flush_triangles);
   dmmr::addCacheOptions(app, o.cache);
-  bool keepMemory = true;
-  dmmr::addMemoryOption(app, &keepMemory);
+  bool keepMemory = true, hugePages = true;
+  dmmr::addMemoryOptions(app, &keepMemory, &hugePages);
   dmmr::addConfigOption(app);
   app.add_flag("--exact-visible", o.exact_visible,
                "add the exactly visible objects and triangles (object-id render) to --stats");
@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return dmmr::exitParse(app, e);
   }
-  if (keepMemory) dmmr::keepFreedMemory();
+  dmmr::applyMemoryPolicy(keepMemory, hugePages, argv);
   try {
     o.scene = paths.scene;
     o.walkthrough = paths.walkthrough;

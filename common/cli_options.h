@@ -43,13 +43,20 @@ inline void addSwitchOption(CLI::App& app, const std::string& name, bool* value,
       ->check(CLI::IsMember({"on", "off"}));
 }
 
-// --keep-freed-memory on|off into `*keep` (default on): whether the tool
-// calls keepFreedMemory() (memory_policy.h) at start-up.
-inline void addMemoryOption(CLI::App& app, bool* keep) {
+// --keep-freed-memory on|off into `*keep` and --huge-pages on|off into
+// `*huge` (both default on): whether the tool calls keepFreedMemory(), and
+// restartWithHugePages() then useHugePageHeap() (memory_policy.h), at
+// start-up.
+inline void addMemoryOptions(CLI::App& app, bool* keep, bool* huge) {
   addSwitchOption(app, "--keep-freed-memory", keep,
                   "keep freed memory in malloc's heaps for reuse rather than return it to the "
                   "kernel, so that each frame does not page-fault its buffers in afresh; "
                   "resident memory stays at its peak");
+  addSwitchOption(app, "--huge-pages", huge,
+                  "back malloc's heap with transparent huge pages where the kernel gives them on "
+                  "request, so that memory touched for the first time faults 2 MiB at a time, "
+                  "not 4 KiB (the program restarts itself once with glibc.malloc.hugetlb=1 "
+                  "added to GLIBC_TUNABLES; a value set there already stands)");
 }
 
 // --flush-triangles auto|N into `*triangles` (-1 for auto): how the

@@ -1,5 +1,8 @@
-// How a long-running renderer asks malloc to keep the memory it frees.
+// How a long-running renderer asks malloc to keep the memory it frees, and
+// to back its heap with transparent huge pages.
 #pragma once
+
+#include <string>
 
 namespace dmmr {
 
@@ -17,5 +20,48 @@ namespace dmmr {
 // before threads are made. Returns false where malloc is not glibc's (it then
 // does nothing).
 bool keepFreedMemory();
+
+// Huge pages. Memory a process touches for the first time still faults a
+// page at a time: a client's heap grows with every object new to it. On a
+// virtual machine such a fault costs about 11 us per 4 KiB page, while a
+// 2 MiB transparent huge page maps 512 of them in one fault
+// (docs/benchmarks.md, "Huge pages"). glibc backs its heap with huge pages
+// only when asked before it starts (the tunable glibc.malloc.hugetlb=1 in
+// GLIBC_TUNABLES), and then only its main heap, not the other threads'
+// arenas. So a tool that wants them calls restartWithHugePages() first thing,
+// then useHugePageHeap() before it starts threads.
+
+// The GLIBC_TUNABLES value that adds glibc.malloc.hugetlb=1 to `current`
+// (null or empty: none set); empty when `current` already sets
+// glibc.malloc.hugetlb, whatever to: a choice made outside stands.
+std::string tunablesWithHugePages(const char* current);
+
+// Whether `current` (a GLIBC_TUNABLES value, may be null) asks glibc for
+// huge pages: glibc.malloc.hugetlb set to anything but 0.
+bool tunablesAskHugePages(const char* current);
+
+// Whether the kernel gives transparent huge pages to memory that asks for
+// them, from the text of /sys/kernel/mm/transparent_hugepage/enabled (the
+// selected mode in brackets): true for "always" and "madvise".
+bool hugePagesAllowed(const std::string& enabled_file_text);
+
+// Re-executes this program (/proc/self/exe, the same `argv`) once, with
+// glibc.malloc.hugetlb=1 added to GLIBC_TUNABLES, when malloc is glibc's (no
+// sanitizer), the kernel allows huge pages and GLIBC_TUNABLES does not set
+// that tunable yet. Returns in every other case, and when the exec fails
+// (the program then runs on without them). Call it before any thread, MPI or
+// GL context starts, and before any output that must not repeat.
+void restartWithHugePages(char** argv);
+
+// When this process's GLIBC_TUNABLES asks for huge pages, puts every thread
+// on glibc's main heap, the one it backs with them (M_ARENA_MAX 1), and
+// returns true; otherwise does nothing and returns false. Call it before
+// threads are made.
+bool useHugePageHeap();
+
+// The start-up policy of a tool's --keep-freed-memory and --huge-pages
+// (cli_options.h): restartWithHugePages(argv) and useHugePageHeap() when
+// `huge_pages`, then keepFreedMemory() when `keep_freed`.
+void applyMemoryPolicy(bool keep_freed, bool huge_pages, char** argv);
 
 }  // namespace dmmr

@@ -194,8 +194,8 @@ int main(int argc, char** argv) {
                  "raytrace --reflections: objects that mirror, by node name (glob; an object "
                  "matches when its node or any node above it does)");
   app.add_option("--glass", c.glass, "raytrace --reflections: objects that refract, by node name");
-  bool keepMemory = true;
-  dmmr::addMemoryOption(app, &keepMemory);
+  bool keepMemory = true, hugePages = true;
+  dmmr::addMemoryOptions(app, &keepMemory, &hugePages);
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -312,7 +312,8 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  if (keepMemory) dmmr::keepFreedMemory();
+  // Before MPI and any thread: it may restart the program (huge pages).
+  dmmr::applyMemoryPolicy(keepMemory, hugePages, argv);
   int status = 0;
   try {
     dmmr::Comm comm(&argc, &argv);

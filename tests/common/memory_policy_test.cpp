@@ -3,6 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "test_support.h"
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
@@ -41,6 +46,72 @@ TEST(MemoryPolicy, BlocksUpTo32MiBComeFromTheHeapAndLargerOnesAreMapped) {
   EXPECT_EQ(mallinfo2().hblks, mapped0);
   std::free(again);
 #endif
+}
+
+TEST(MemoryPolicy, HugePagesAreAddedToTheTunablesUnlessTheyAreSetThere) {
+  EXPECT_EQ(tunablesWithHugePages(nullptr), "glibc.malloc.hugetlb=1");
+  EXPECT_EQ(tunablesWithHugePages(""), "glibc.malloc.hugetlb=1");
+  EXPECT_EQ(tunablesWithHugePages("glibc.malloc.arena_max=2"),
+            "glibc.malloc.arena_max=2:glibc.malloc.hugetlb=1");
+  // Set outside, to anything: that choice stands.
+  EXPECT_EQ(tunablesWithHugePages("glibc.malloc.hugetlb=0"), "");
+  EXPECT_EQ(tunablesWithHugePages("glibc.malloc.tcache_count=0:glibc.malloc.hugetlb=2"), "");
+  // Another tunable whose name begins the same is not this one.
+  EXPECT_EQ(tunablesWithHugePages("glibc.malloc.hugetlbx=1"),
+            "glibc.malloc.hugetlbx=1:glibc.malloc.hugetlb=1");
+}
+
+TEST(MemoryPolicy, TunablesAskHugePagesUnlessUnsetOrZero) {
+  EXPECT_FALSE(tunablesAskHugePages(nullptr));
+  EXPECT_FALSE(tunablesAskHugePages(""));
+  EXPECT_FALSE(tunablesAskHugePages("glibc.malloc.hugetlb=0"));
+  EXPECT_FALSE(tunablesAskHugePages("glibc.malloc.hugetlb="));
+  EXPECT_FALSE(tunablesAskHugePages("glibc.malloc.hugetlbx=1"));
+  EXPECT_TRUE(tunablesAskHugePages("glibc.malloc.hugetlb=1"));
+  EXPECT_TRUE(tunablesAskHugePages("glibc.malloc.arena_max=1:glibc.malloc.hugetlb=2"));
+}
+
+TEST(MemoryPolicy, TheKernelGivesHugePagesOnRequestInItsAlwaysAndMadviseModes) {
+  EXPECT_TRUE(hugePagesAllowed("always [madvise] never\n"));
+  EXPECT_TRUE(hugePagesAllowed("[always] madvise never\n"));
+  EXPECT_FALSE(hugePagesAllowed("always madvise [never]\n"));
+  EXPECT_FALSE(hugePagesAllowed(""));  // no such file: a kernel without them
+}
+
+// The whole path in a fresh process: the restart, the one heap and the
+// kernel's huge pages. 24 MiB touched page by page from a new thread takes a
+// fault per 4 KiB (6,144) without huge pages and one per 2 MiB (12, a few
+// more where one is not to be had) with them.
+TEST(MemoryPolicy, AThreadsFreshMemoryFaultsHugePagesAtATimeWithThePolicy) {
+  if (!kGlibcMalloc) GTEST_SKIP() << "malloc is not glibc's";
+  std::ifstream file("/sys/kernel/mm/transparent_hugepage/enabled");
+  std::stringstream mode;
+  mode << file.rdbuf();
+  auto probe = [](const char* setting, int* status) {
+    return test::runCapture("env -u GLIBC_TUNABLES -u DMMR_HUGE_PAGES_RESTARTED " +
+                                test::tool("huge_pages_probe") + " " + setting,
+                            status);
+  };
+  auto faultsOf = [](const std::string& out) {
+    size_t at = out.find("faults=");
+    return at == std::string::npos ? -1L : std::atol(out.c_str() + at + 7);
+  };
+  int status = -1;
+  const std::string on = probe("on", &status);
+  ASSERT_EQ(status, 0) << on;
+  if (!hugePagesAllowed(mode.str())) {
+    EXPECT_NE(on.find("tunables= "), std::string::npos) << "no restart without huge pages: " << on;
+    GTEST_SKIP() << "this kernel gives no huge pages: " << mode.str();
+  }
+  EXPECT_NE(on.find("tunables=glibc.malloc.hugetlb=1 "), std::string::npos) << on;
+  EXPECT_LT(faultsOf(on), 6144 / 4) << on;
+  const std::string off = probe("off", &status);
+  ASSERT_EQ(status, 0) << off;
+  EXPECT_NE(off.find("tunables= "), std::string::npos) << off;
+  // In "always" mode every heap gets huge pages, asked or not.
+  if (mode.str().find("[madvise]") != std::string::npos) {
+    EXPECT_GE(faultsOf(off), 6144 * 3 / 4) << off;
+  }
 }
 
 }  // namespace
