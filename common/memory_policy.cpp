@@ -83,7 +83,14 @@ void restartWithHugePages(char** argv) {
   if (!hugePagesAllowed(text.str())) return;
 #if defined(__GLIBC__)
   if (setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0 || setenv(kRestarted, "1", 1) != 0) return;
-  execv("/proc/self/exe", argv);
+  // The program's own path, not /proc/self/exe: the process is named after
+  // the file it runs (ps, pgrep, perf would show "exe").
+  char self[4096];
+  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) {
+    self[n] = '\0';
+    execv(self, argv);
+  }
   // The exec failed: run on as started.
   if (current)
     setenv("GLIBC_TUNABLES", current, 1);

@@ -45,12 +45,14 @@ bool tunablesAskHugePages(const char* current);
 // selected mode in brackets): true for "always" and "madvise".
 bool hugePagesAllowed(const std::string& enabled_file_text);
 
-// Re-executes this program (/proc/self/exe, the same `argv`) once, with
-// glibc.malloc.hugetlb=1 added to GLIBC_TUNABLES, when malloc is glibc's (no
-// sanitizer), the kernel allows huge pages and GLIBC_TUNABLES does not set
-// that tunable yet. Returns in every other case, and when the exec fails
-// (the program then runs on without them). Call it before any thread, MPI or
-// GL context starts, and before any output that must not repeat.
+// Re-executes this program (the file /proc/self/exe names, the same `argv`)
+// once, with glibc.malloc.hugetlb=1 added to GLIBC_TUNABLES, when malloc is
+// glibc's (no sanitizer), the kernel allows huge pages and GLIBC_TUNABLES
+// does not set that tunable yet. Returns in every other case, and when the
+// exec fails (the program then runs on without them). Call it before any
+// thread, MPI or GL context starts, and before any output that must not
+// repeat. The restart costs a second start of the dynamic linker (about
+// 0.1 s of CPU here).
 void restartWithHugePages(char** argv);
 
 // When this process's GLIBC_TUNABLES asks for huge pages, puts every thread
