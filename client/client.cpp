@@ -1,4 +1,5 @@
 #include "client.h"
+#include "memory_policy.h"
 
 #include <algorithm>
 #include <atomic>
@@ -1594,6 +1595,9 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
       scene.skeleton.clear();
       scene.skeleton.shrink_to_fit();
     }
+    // Before the caches start to grow (memory_policy.h).
+    preTouchHeap(opts.pre_touch_mib < 0 ? autoPreTouchBytes(scene.manifest.geometry_bytes)
+                                        : size_t(opts.pre_touch_mib) << 20);
     host = std::make_unique<HostCache>(
         scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   } catch (const std::exception& e) {

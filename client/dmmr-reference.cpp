@@ -22,7 +22,7 @@ int main(int argc, char** argv) {
   dmmr::addFlushOption(app, &o.flush_triangles);
   dmmr::addCacheOptions(app, o.cache);
   bool keepMemory = true, hugePages = true;
-  dmmr::addMemoryOptions(app, &keepMemory, &hugePages);
+  dmmr::addMemoryOptions(app, &keepMemory, &hugePages, &o.pre_touch_mib);
   dmmr::addConfigOption(app);
   app.add_flag("--exact-visible", o.exact_visible,
                "add the exactly visible objects and triangles (object-id render) to --stats");
@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return dmmr::exitParse(app, e);
   }
-  dmmr::applyMemoryPolicy(keepMemory, hugePages, argv);
+  dmmr::applyMemoryPolicy(keepMemory, hugePages, o.pre_touch_mib != 0, argv);
   try {
     o.scene = paths.scene;
     o.walkthrough = paths.walkthrough;

@@ -1,4 +1,5 @@
 #include "reference.h"
+#include "memory_policy.h"
 
 #include <chrono>
 #include <cstdio>
@@ -67,6 +68,8 @@ ExactVisible exactVisible(const Scene& scene, GpuCache& meshes, Renderer& r, con
 
 void runReference(const ReferenceOptions& opts) {
   Scene scene = loadScene(opts.scene);
+  preTouchHeap(opts.pre_touch_mib < 0 ? autoPreTouchBytes(scene.manifest.geometry_bytes)
+                                      : size_t(opts.pre_touch_mib) << 20);
   Walkthrough path = readWalkthrough(opts.walkthrough);
   if (opts.from_frame >= path.points.size())
     throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +

@@ -27,6 +27,9 @@ struct ReferenceOptions {
   // The same geometry cache as the clients' (one GPU level); unlimited by
   // default, so every geometry is uploaded once and kept.
   CacheOptions cache;
+  // As ClientOptions::pre_touch_mib (--pre-touch), so that brute force is
+  // measured under the same memory policy.
+  int64_t pre_touch_mib = -1;
   // Resume an interrupted run: render frames from this one on; the stats
   // CSV keeps the rows of the frames before it.
   uint32_t from_frame = 0;

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "camera.h"
@@ -43,11 +44,12 @@ inline void addSwitchOption(CLI::App& app, const std::string& name, bool* value,
       ->check(CLI::IsMember({"on", "off"}));
 }
 
-// --keep-freed-memory on|off into `*keep` and --huge-pages on|off into
-// `*huge` (both default on): whether the tool calls keepFreedMemory(), and
-// restartWithHugePages() then useHugePageHeap() (memory_policy.h), at
-// start-up.
-inline void addMemoryOptions(CLI::App& app, bool* keep, bool* huge) {
+// --keep-freed-memory on|off into `*keep`, --huge-pages on|off into `*huge`
+// (both default on) and --pre-touch auto|off|MiB into `*pre_touch_mib` (-1
+// auto, the default; 0 off): the memory policy the tool applies at start-up
+// (applyMemoryPolicy) and the heap it pre-touches once its scene is loaded
+// (preTouchHeap; memory_policy.h).
+inline void addMemoryOptions(CLI::App& app, bool* keep, bool* huge, int64_t* pre_touch_mib) {
   addSwitchOption(app, "--keep-freed-memory", keep,
                   "keep freed memory in malloc's heaps for reuse rather than return it to the "
                   "kernel, so that each frame does not page-fault its buffers in afresh; "
@@ -57,6 +59,23 @@ inline void addMemoryOptions(CLI::App& app, bool* keep, bool* huge) {
                   "request, so that memory touched for the first time faults 2 MiB at a time, "
                   "not 4 KiB (the program restarts itself once with glibc.malloc.hugetlb=1 "
                   "added to GLIBC_TUNABLES; a value set there already stands)");
+  app.add_option_function<std::string>(
+         "--pre-touch",
+         [pre_touch_mib](const std::string& v) {
+           *pre_touch_mib = v == "auto" ? -1 : v == "off" ? 0 : std::stoll(v);
+         },
+         "touch this many MiB of heap once the scene is loaded, so that the caches grow into "
+         "memory already mapped instead of faulting it in frame by frame (auto, the default: "
+         "twice the scene's geometry files plus 16 MiB, at most 192; off; or MiB, at most 192; "
+         "needs --keep-freed-memory on)")
+      ->check([](const std::string& v) {
+        if (v == "auto" || v == "off") return std::string();
+        char* end = nullptr;
+        long long n = std::strtoll(v.c_str(), &end, 10);
+        if (v.empty() || *end || n < 0 || n > 192)
+          return std::string("expected auto, off or MiB from 0 to 192");
+        return std::string();
+      });
 }
 
 // --flush-triangles auto|N into `*triangles` (-1 for auto): how the

@@ -1,9 +1,11 @@
 #include "memory_policy.h"
 
+#include <algorithm>
 #include <cstdlib>  // defines __GLIBC__ on glibc, which the #if below needs
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -21,6 +23,8 @@ constexpr bool kGlibcMalloc = false;  // or a sanitizer's allocator
 #endif
 
 constexpr const char* kHugeTlb = "glibc.malloc.hugetlb";
+// What preTouchHeap needs of the policy applied so far.
+bool kept_freed = false, one_heap = false;
 // Set across the exec, so that a glibc that dropped GLIBC_TUNABLES (a
 // set-uid program) cannot make the restart loop.
 constexpr const char* kRestarted = "DMMR_HUGE_PAGES_RESTARTED";
@@ -47,7 +51,9 @@ const char* hugeTlbValue(const char* current, size_t* length) {
 bool keepFreedMemory() {
 #if defined(__GLIBC__)
   // Setting either threshold also ends glibc's dynamic adjustment of both.
-  return mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1 && mallopt(M_TRIM_THRESHOLD, 256 << 20) == 1;
+  kept_freed =
+      mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1 && mallopt(M_TRIM_THRESHOLD, 256 << 20) == 1;
+  return kept_freed;
 #else
   return false;
 #endif
@@ -101,18 +107,53 @@ void restartWithHugePages(char** argv) {
 
 bool useHugePageHeap() {
   if (!kGlibcMalloc || !tunablesAskHugePages(std::getenv("GLIBC_TUNABLES"))) return false;
+  return useOneHeap();
+}
+
+bool useOneHeap() {
+  if (!kGlibcMalloc) return false;
 #if defined(__GLIBC__)
-  return mallopt(M_ARENA_MAX, 1) == 1;
+  if (mallopt(M_ARENA_MAX, 1) != 1) return false;
+  one_heap = true;
+  return true;
 #else
   return false;
 #endif
 }
 
-void applyMemoryPolicy(bool keep_freed, bool huge_pages, char** argv) {
+size_t preTouchHeap(size_t bytes) {
+  if (!kGlibcMalloc || !kept_freed || !one_heap) return 0;
+  bytes = std::min(bytes, kMaxPreTouch);
+  // 16 MiB blocks: below the 32 MiB mmap threshold, so they come from the
+  // heap, and freed together they merge into its top.
+  constexpr size_t kBlock = size_t(16) << 20;
+  // Reserved first: the list's own growth must not land between the blocks,
+  // or freed they would not merge into the heap's top (one free region that
+  // any later request can be cut from).
+  std::vector<void*> blocks;
+  blocks.reserve(bytes / kBlock + 1);
+  size_t touched = 0;
+  for (; touched < bytes; touched += kBlock) {
+    auto* block = static_cast<volatile char*>(std::malloc(kBlock));
+    if (!block) break;
+    for (size_t at = 0; at < kBlock; at += 4096) block[at] = 0;
+    blocks.push_back(const_cast<char*>(block));
+  }
+  for (auto it = blocks.rbegin(); it != blocks.rend(); ++it) std::free(*it);
+  return touched;
+}
+
+size_t autoPreTouchBytes(uint64_t geometry_file_bytes) {
+  const uint64_t want = 2 * geometry_file_bytes + (uint64_t(16) << 20);
+  return size_t(std::min<uint64_t>(want, kMaxPreTouch));
+}
+
+void applyMemoryPolicy(bool keep_freed, bool huge_pages, bool pre_touch, char** argv) {
   if (huge_pages) {
     restartWithHugePages(argv);  // returns unless it restarts
     useHugePageHeap();
   }
+  if (pre_touch) useOneHeap();
   if (keep_freed) keepFreedMemory();
 }
 

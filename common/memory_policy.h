@@ -61,9 +61,37 @@ void restartWithHugePages(char** argv);
 // threads are made.
 bool useHugePageHeap();
 
-// The start-up policy of a tool's --keep-freed-memory and --huge-pages
-// (cli_options.h): restartWithHugePages(argv) and useHugePageHeap() when
-// `huge_pages`, then keepFreedMemory() when `keep_freed`.
-void applyMemoryPolicy(bool keep_freed, bool huge_pages, char** argv);
+// Puts every thread on glibc's main heap (M_ARENA_MAX 1): what one thread
+// frees or pre-touches, another reuses. Returns false where malloc is not
+// glibc's. Call it before threads are made.
+bool useOneHeap();
+
+// Pre-touching. The caches of a client grow with every object new to it,
+// and each page they grow into is touched for the first time in the frame
+// that needs it: a page fault, and on a virtual machine the host backing the
+// page (docs/benchmarks.md, "Pre-touching the heap"). preTouchHeap(bytes)
+// allocates `bytes` from the heap in blocks below the mmap threshold, writes
+// a byte per 4 KiB page and frees them: the heap keeps them at its top, so
+// the caches later grow into pages already mapped, and the cost moves to
+// start-up (as a JVM's AlwaysPreTouch). Of use only once freed memory is kept
+// (keepFreedMemory: the trim threshold is above kMaxPreTouch) and every
+// thread allocates from the one heap (useOneHeap); otherwise, or where malloc
+// is not glibc's, it does nothing. Returns the bytes touched.
+size_t preTouchHeap(size_t bytes);
+// The most preTouchHeap is asked for: below keepFreedMemory's 256 MiB trim
+// threshold, so that the heap keeps it.
+inline constexpr size_t kMaxPreTouch = size_t(192) << 20;
+// `--pre-touch auto`: what a renderer's caches will grow into, at most
+// kMaxPreTouch: twice the scene's geometry file bytes (the RAM level holds
+// the files, the GPU level about as much again decoded) plus 16 MiB of
+// frame buffers.
+size_t autoPreTouchBytes(uint64_t geometry_file_bytes);
+
+// The start-up policy of a tool's --keep-freed-memory, --huge-pages and
+// --pre-touch (cli_options.h): restartWithHugePages(argv) when `huge_pages`;
+// useOneHeap() when `huge_pages` and glibc was asked for them, or when
+// `pre_touch`; then keepFreedMemory() when `keep_freed`. preTouchHeap is
+// called later, once the scene's size is known.
+void applyMemoryPolicy(bool keep_freed, bool huge_pages, bool pre_touch, char** argv);
 
 }  // namespace dmmr

@@ -195,7 +195,7 @@ int main(int argc, char** argv) {
                  "matches when its node or any node above it does)");
   app.add_option("--glass", c.glass, "raytrace --reflections: objects that refract, by node name");
   bool keepMemory = true, hugePages = true;
-  dmmr::addMemoryOptions(app, &keepMemory, &hugePages);
+  dmmr::addMemoryOptions(app, &keepMemory, &hugePages, &c.pre_touch_mib);
   dmmr::addConfigOption(app);
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
@@ -313,7 +313,7 @@ int main(int argc, char** argv) {
   }
 
   // Before MPI and any thread: it may restart the program (huge pages).
-  dmmr::applyMemoryPolicy(keepMemory, hugePages, argv);
+  dmmr::applyMemoryPolicy(keepMemory, hugePages, c.pre_touch_mib != 0, argv);
   int status = 0;
   try {
     dmmr::Comm comm(&argc, &argv);

@@ -1,6 +1,7 @@
 // Not a test by itself: memory_policy_test runs it in a fresh process.
-// `huge_pages_probe on|off` applies the memory policy with huge pages on or
-// off (applyMemoryPolicy, which may restart it), then a new thread touches
+// `huge_pages_probe on|off|pretouch` applies the memory policy with huge
+// pages on or off (applyMemoryPolicy, which may restart it), or with huge
+// pages off and 48 MiB pre-touched (preTouchHeap); then a new thread touches
 // every 4 KiB page of a fresh 24 MiB block (served by the heap: below
 // keepFreedMemory's 32 MiB threshold) and it prints
 // "tunables=<GLIBC_TUNABLES> faults=<the thread's minor page faults>".
@@ -9,16 +10,19 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <thread>
 
 #include "memory_policy.h"
 
 int main(int argc, char** argv) {
-  if (argc != 2 || (std::strcmp(argv[1], "on") != 0 && std::strcmp(argv[1], "off") != 0)) {
-    std::fprintf(stderr, "usage: huge_pages_probe on|off\n");
+  const std::string mode = argc == 2 ? argv[1] : "";
+  if (mode != "on" && mode != "off" && mode != "pretouch") {
+    std::fprintf(stderr, "usage: huge_pages_probe on|off|pretouch\n");
     return 2;
   }
-  dmmr::applyMemoryPolicy(true, std::strcmp(argv[1], "on") == 0, argv);
+  dmmr::applyMemoryPolicy(true, mode == "on", mode == "pretouch", argv);
+  if (mode == "pretouch" && dmmr::preTouchHeap(size_t(48) << 20) == 0) return 1;
   long faults = -1;
   std::thread toucher([&faults] {
     const size_t bytes = size_t(24) << 20;

@@ -114,5 +114,28 @@ TEST(MemoryPolicy, AThreadsFreshMemoryFaultsHugePagesAtATimeWithThePolicy) {
   }
 }
 
+// Pre-touching, without huge pages: 48 MiB touched and freed at start-up,
+// then 24 MiB touched from a new thread reuse those pages (the one heap)
+// instead of faulting 6,144 of their own.
+TEST(MemoryPolicy, AThreadGrowsIntoPreTouchedHeapWithoutFaulting) {
+  if (!kGlibcMalloc) GTEST_SKIP() << "malloc is not glibc's";
+  int status = -1;
+  const std::string out = test::runCapture("env -u GLIBC_TUNABLES -u DMMR_HUGE_PAGES_RESTARTED " +
+                                               test::tool("huge_pages_probe") + " pretouch",
+                                           &status);
+  ASSERT_EQ(status, 0) << out;
+  EXPECT_NE(out.find("tunables= "), std::string::npos) << "huge pages stay off: " << out;
+  const size_t at = out.find("faults=");
+  ASSERT_NE(at, std::string::npos) << out;
+  EXPECT_LT(std::atol(out.c_str() + at + 7), 6144 / 8) << out;
+}
+
+TEST(MemoryPolicy, AutoPreTouchIsTwiceTheGeometryAndFramesAtMost192MiB) {
+  EXPECT_EQ(autoPreTouchBytes(0), size_t(16) << 20);
+  EXPECT_EQ(autoPreTouchBytes(uint64_t(10) << 20), size_t(36) << 20);
+  EXPECT_EQ(autoPreTouchBytes(uint64_t(1) << 40), kMaxPreTouch);
+  EXPECT_LT(kMaxPreTouch, size_t(256) << 20);  // below keepFreedMemory's trim threshold
+}
+
 }  // namespace
 }  // namespace dmmr
