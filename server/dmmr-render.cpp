@@ -200,10 +200,14 @@ int main(int argc, char** argv) {
   // Only rank 0 prints usage errors (the rank is known before MPI starts).
   const char* rankEnv = std::getenv("OMPI_COMM_WORLD_RANK");
   bool quiet = rankEnv && std::atoi(rankEnv) != 0;
+  // A usage error fails the job through rank 0, which prints it; the other
+  // ranks exit 0, since one exiting non-zero first makes mpirun kill the job,
+  // rank 0 included, before it has printed anything.
+  const int usage_failure = quiet ? 0 : 1;
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    if (quiet) return e.get_exit_code() == 0 ? 0 : 1;
+    if (quiet) return 0;
     return dmmr::exitParse(app, e);
   }
   if (!serve.empty()) {
@@ -215,7 +219,7 @@ int main(int argc, char** argv) {
                      "dmmr-render: --serve %s: expected [ADDR:]PORT, e.g. 8080 or "
                      "0.0.0.0:8080\n",
                      serve.c_str());
-      return 1;
+      return usage_failure;
     }
     // One frame at a time per viewer unless told: the latency a person
     // feels is the pipeline's depth times the frame time.
@@ -224,7 +228,7 @@ int main(int argc, char** argv) {
   } else if (paths.walkthrough.empty() || paths.out.empty()) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --walkthrough and --out are required (or --serve)\n");
-    return 1;
+    return usage_failure;
   }
   c.ray.compact = bvhLayout == "compact";
   c.ray.quality = bvhQuality == "low"    ? dmmr::BvhQuality::Low
@@ -234,7 +238,7 @@ int main(int argc, char** argv) {
     double n = std::sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2]);
     if (!(n > 0) || !std::isfinite(n)) {
       if (!quiet) std::fprintf(stderr, "dmmr-render: --light must be a non-zero direction\n");
-      return 1;
+      return usage_failure;
     }
     c.ray.light = {light[0] / n, light[1] / n, light[2] / n};
   }
@@ -258,11 +262,11 @@ int main(int argc, char** argv) {
       c.visibility.method == dmmr::VisibilityMethod::Queries) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --stages %s needs --visibility pyramid\n", stages.c_str());
-    return 1;
+    return usage_failure;
   }
   if (s.ray_stride > 1 && renderer != "raytrace") {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --ray-stride needs --renderer raytrace\n");
-    return 1;
+    return usage_failure;
   }
   // With --serve the stride is for moving frames; a still is rendered again
   // with every ray.
@@ -284,7 +288,7 @@ int main(int argc, char** argv) {
   if (c.visibility.run_sizes.empty() || c.visibility.run_sizes.back() != 1 ||
       !std::is_sorted(c.visibility.run_sizes.rbegin(), c.visibility.run_sizes.rend())) {
     if (!quiet) std::fprintf(stderr, "dmmr-render: --query-runs must decrease and end at 1\n");
-    return 1;
+    return usage_failure;
   }
   // A pool's parts are twice the clients by default: with two in flight a
   // client, every part would be handed out at once, none on demand.
@@ -292,7 +296,7 @@ int main(int argc, char** argv) {
   if (s.pool_share > 0 && s.regions_per_client > 1) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --pool-share cannot be used with --regions-per-client\n");
-    return 1;
+    return usage_failure;
   }
   if (s.regions_per_client > 1 && s.cost_grid) {
     if (!quiet)
@@ -300,7 +304,7 @@ int main(int argc, char** argv) {
                    "dmmr-render: --cost-grid needs one region a client; it cannot be used with "
                    "--regions-per-client %d\n",
                    s.regions_per_client);
-    return 1;
+    return usage_failure;
   }
   c.codec = dmmr::parseCodec(codec);
   dmmr::parseBalance(balance, &s.balance);  // checked by CLI11 above
@@ -309,7 +313,7 @@ int main(int argc, char** argv) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --tile %s: expected WxH with W, H from 1 to 16384\n",
                    tile.c_str());
-    return 1;
+    return usage_failure;
   }
 
   // Before MPI and any thread: it may restart the program (huge pages).
