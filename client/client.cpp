@@ -1,5 +1,4 @@
 #include "client.h"
-#include "memory_policy.h"
 
 #include <algorithm>
 #include <atomic>
@@ -30,6 +29,7 @@
 #include "guarded.h"
 #include "host_cache.h"
 #include "image.h"
+#include "memory_policy.h"
 #include "protocol.h"
 #include "queue.h"
 #include "rt_cache.h"

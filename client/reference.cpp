@@ -1,5 +1,4 @@
 #include "reference.h"
-#include "memory_policy.h"
 
 #include <chrono>
 #include <cstdio>
@@ -12,6 +11,7 @@
 #include "gpu_cache.h"
 #include "host_cache.h"
 #include "image.h"
+#include "memory_policy.h"
 #include "scene.h"
 #include "stats_csv.h"
 #include "walkthrough.h"
