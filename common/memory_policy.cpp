@@ -16,7 +16,7 @@ namespace dmmr {
 
 namespace {
 
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+#if defined(__GLIBC__) && !defined(DMMR_SANITIZER_MALLOC)
 constexpr bool kGlibcMalloc = true;
 #else
 constexpr bool kGlibcMalloc = false;  // or a sanitizer's allocator
@@ -47,6 +47,10 @@ const char* hugeTlbValue(const char* current, size_t* length) {
 }
 
 }  // namespace
+
+bool glibcMalloc() {
+  return kGlibcMalloc;
+}
 
 bool keepFreedMemory() {
 #if defined(__GLIBC__)

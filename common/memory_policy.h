@@ -21,6 +21,19 @@ namespace dmmr {
 // does nothing).
 bool keepFreedMemory();
 
+// Whether malloc is glibc's own: glibc, and no sanitizer's allocator in its
+// place (GCC says so with __SANITIZE_*__, clang with __has_feature).
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+#define DMMR_SANITIZER_MALLOC 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define DMMR_SANITIZER_MALLOC 1
+#endif
+bool glibcMalloc();
+
 // Huge pages. Memory a process touches for the first time still faults a
 // page at a time: a client's heap grows with every object new to it. On a
 // virtual machine such a fault costs about 11 us per 4 KiB page, while a

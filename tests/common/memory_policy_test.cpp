@@ -15,11 +15,8 @@
 namespace dmmr {
 namespace {
 
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-constexpr bool kGlibcMalloc = true;
-#else
-constexpr bool kGlibcMalloc = false;  // or a sanitizer's allocator, which ignores mallopt
-#endif
+// glibc's malloc, not a sanitizer's, which ignores mallopt.
+const bool kGlibcMalloc = glibcMalloc();
 
 // Without the policy a fresh process serves 8 MiB with mmap (threshold
 // 128 KiB), so each frame's buffers would be new pages; with it they come
