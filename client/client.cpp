@@ -1596,8 +1596,7 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
       scene.skeleton.shrink_to_fit();
     }
     // Before the caches start to grow (memory_policy.h).
-    preTouchHeap(opts.pre_touch_mib < 0 ? autoPreTouchBytes(scene.manifest.geometry_bytes)
-                                        : size_t(opts.pre_touch_mib) << 20);
+    preTouchHeap(preTouchBytes(opts.pre_touch_mib, scene.manifest.geometry_bytes));
     host = std::make_unique<HostCache>(
         scene, HostCacheOptions{opts.cache.ram_budget, opts.cache.ram_dir, opts.cache.eviction});
   } catch (const std::exception& e) {

@@ -26,7 +26,7 @@ struct ClientOptions {
   Codec codec = Codec::LZ4;
   CacheOptions cache;
   // Heap to pre-touch once the scene is loaded (preTouchHeap): MiB, 0 none,
-  // -1 autoPreTouchBytes of the scene's geometry (--pre-touch).
+  // -1 auto (--pre-touch; preTouchBytes).
   int64_t pre_touch_mib = -1;
   // Flush the GL stages' drawing every this many triangles (Renderer::
   // setFlushEvery; 0: never; -1: the driver's default, defaultFlushTriangles).

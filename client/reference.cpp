@@ -68,8 +68,6 @@ ExactVisible exactVisible(const Scene& scene, GpuCache& meshes, Renderer& r, con
 
 void runReference(const ReferenceOptions& opts) {
   Scene scene = loadScene(opts.scene);
-  preTouchHeap(opts.pre_touch_mib < 0 ? autoPreTouchBytes(scene.manifest.geometry_bytes)
-                                      : size_t(opts.pre_touch_mib) << 20);
   Walkthrough path = readWalkthrough(opts.walkthrough);
   if (opts.from_frame >= path.points.size())
     throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
@@ -78,6 +76,8 @@ void runReference(const ReferenceOptions& opts) {
   header += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles,floor_ms\n" : "\n";
   std::string csv = resumeStatsCsv(opts.stats, header, opts.from_frame);
   std::filesystem::create_directories(opts.out);
+  // The input checked, before the caches start to grow (memory_policy.h).
+  preTouchHeap(preTouchBytes(opts.pre_touch_mib, scene.manifest.geometry_bytes));
 
   auto ctx = createContext(opts.context);
   Renderer renderer(ctx->gl(), opts.view.width, opts.view.height);

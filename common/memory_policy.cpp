@@ -16,6 +16,18 @@ namespace dmmr {
 
 namespace {
 
+// A sanitizer's allocator replaces glibc's: GCC says so with
+// __SANITIZE_*__, clang with __has_feature.
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+#define DMMR_SANITIZER_MALLOC 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define DMMR_SANITIZER_MALLOC 1
+#endif
+
 #if defined(__GLIBC__) && !defined(DMMR_SANITIZER_MALLOC)
 constexpr bool kGlibcMalloc = true;
 #else
@@ -109,11 +121,6 @@ void restartWithHugePages(char** argv) {
 #endif
 }
 
-bool useHugePageHeap() {
-  if (!kGlibcMalloc || !tunablesAskHugePages(std::getenv("GLIBC_TUNABLES"))) return false;
-  return useOneHeap();
-}
-
 bool useOneHeap() {
   if (!kGlibcMalloc) return false;
 #if defined(__GLIBC__)
@@ -147,17 +154,16 @@ size_t preTouchHeap(size_t bytes) {
   return touched;
 }
 
-size_t autoPreTouchBytes(uint64_t geometry_file_bytes) {
-  const uint64_t want = 2 * geometry_file_bytes + (uint64_t(16) << 20);
+size_t preTouchBytes(int64_t option_mib, uint64_t geometry_file_bytes) {
+  const uint64_t want =
+      option_mib >= 0 ? uint64_t(option_mib) << 20 : 2 * geometry_file_bytes + (uint64_t(16) << 20);
   return size_t(std::min<uint64_t>(want, kMaxPreTouch));
 }
 
 void applyMemoryPolicy(bool keep_freed, bool huge_pages, bool pre_touch, char** argv) {
-  if (huge_pages) {
-    restartWithHugePages(argv);  // returns unless it restarts
-    useHugePageHeap();
-  }
-  if (pre_touch) useOneHeap();
+  if (huge_pages) restartWithHugePages(argv);  // returns unless it restarts
+  if ((huge_pages && tunablesAskHugePages(std::getenv("GLIBC_TUNABLES"))) || pre_touch)
+    useOneHeap();
   if (keep_freed) keepFreedMemory();
 }
 

@@ -2,6 +2,8 @@
 // to back its heap with transparent huge pages.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace dmmr {
@@ -22,16 +24,7 @@ namespace dmmr {
 bool keepFreedMemory();
 
 // Whether malloc is glibc's own: glibc, and no sanitizer's allocator in its
-// place (GCC says so with __SANITIZE_*__, clang with __has_feature).
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
-    __has_feature(memory_sanitizer)
-#define DMMR_SANITIZER_MALLOC 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define DMMR_SANITIZER_MALLOC 1
-#endif
+// place.
 bool glibcMalloc();
 
 // Huge pages. Memory a process touches for the first time still faults a
@@ -42,7 +35,8 @@ bool glibcMalloc();
 // only when asked before it starts (the tunable glibc.malloc.hugetlb=1 in
 // GLIBC_TUNABLES), and then only its main heap, not the other threads'
 // arenas. So a tool that wants them calls restartWithHugePages() first thing,
-// then useHugePageHeap() before it starts threads.
+// then, once restarted, useOneHeap() before it starts threads
+// (applyMemoryPolicy does both).
 
 // The GLIBC_TUNABLES value that adds glibc.malloc.hugetlb=1 to `current`
 // (null or empty: none set); empty when `current` already sets
@@ -68,12 +62,6 @@ bool hugePagesAllowed(const std::string& enabled_file_text);
 // 0.1 s of CPU here).
 void restartWithHugePages(char** argv);
 
-// When this process's GLIBC_TUNABLES asks for huge pages, puts every thread
-// on glibc's main heap, the one it backs with them (M_ARENA_MAX 1), and
-// returns true; otherwise does nothing and returns false. Call it before
-// threads are made.
-bool useHugePageHeap();
-
 // Puts every thread on glibc's main heap (M_ARENA_MAX 1): what one thread
 // frees or pre-touches, another reuses. Returns false where malloc is not
 // glibc's. Call it before threads are made.
@@ -94,17 +82,19 @@ size_t preTouchHeap(size_t bytes);
 // The most preTouchHeap is asked for: below keepFreedMemory's 256 MiB trim
 // threshold, so that the heap keeps it.
 inline constexpr size_t kMaxPreTouch = size_t(192) << 20;
-// `--pre-touch auto`: what a renderer's caches will grow into, at most
-// kMaxPreTouch: twice the scene's geometry file bytes (the RAM level holds
-// the files, the GPU level about as much again decoded) plus 16 MiB of
-// frame buffers.
-size_t autoPreTouchBytes(uint64_t geometry_file_bytes);
+// The bytes to pre-touch for --pre-touch `option_mib` (cli_options.h: MiB,
+// 0 none) in a scene of `geometry_file_bytes`, at most kMaxPreTouch. Auto
+// (-1) is what a renderer's caches will grow into: twice the geometry file
+// bytes (the RAM level holds the files, the GPU level about as much again
+// decoded) plus 16 MiB of frame buffers.
+size_t preTouchBytes(int64_t option_mib, uint64_t geometry_file_bytes);
 
 // The start-up policy of a tool's --keep-freed-memory, --huge-pages and
 // --pre-touch (cli_options.h): restartWithHugePages(argv) when `huge_pages`;
-// useOneHeap() when `huge_pages` and glibc was asked for them, or when
-// `pre_touch`; then keepFreedMemory() when `keep_freed`. preTouchHeap is
-// called later, once the scene's size is known.
+// useOneHeap() when `huge_pages` and GLIBC_TUNABLES now asks for them
+// (tunablesAskHugePages), or when `pre_touch`; then keepFreedMemory() when
+// `keep_freed`. preTouchHeap is called later, once the scene's size is
+// known.
 void applyMemoryPolicy(bool keep_freed, bool huge_pages, bool pre_touch, char** argv);
 
 }  // namespace dmmr

@@ -128,9 +128,12 @@ TEST(MemoryPolicy, AThreadGrowsIntoPreTouchedHeapWithoutFaulting) {
 }
 
 TEST(MemoryPolicy, AutoPreTouchIsTwiceTheGeometryAndFramesAtMost192MiB) {
-  EXPECT_EQ(autoPreTouchBytes(0), size_t(16) << 20);
-  EXPECT_EQ(autoPreTouchBytes(uint64_t(10) << 20), size_t(36) << 20);
-  EXPECT_EQ(autoPreTouchBytes(uint64_t(1) << 40), kMaxPreTouch);
+  EXPECT_EQ(preTouchBytes(-1, 0), size_t(16) << 20);
+  EXPECT_EQ(preTouchBytes(-1, uint64_t(10) << 20), size_t(36) << 20);
+  EXPECT_EQ(preTouchBytes(-1, uint64_t(1) << 40), kMaxPreTouch);
+  // A size given in MiB stands, whatever the scene.
+  EXPECT_EQ(preTouchBytes(40, uint64_t(1) << 40), size_t(40) << 20);
+  EXPECT_EQ(preTouchBytes(0, uint64_t(1) << 40), 0u);
   EXPECT_LT(kMaxPreTouch, size_t(256) << 20);  // below keepFreedMemory's trim threshold
 }
 
