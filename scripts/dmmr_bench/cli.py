@@ -135,6 +135,8 @@ def main(argv=None):
         "targets": suite.get("targets", {}),
         "osg_baseline": runner.osg_baseline,
         "reference_stride": runner.reference_stride(),  # the reference rendered (and compared) every k-th frame
+        # the runs' frames: control points path_start.. of a walk made with path_frames (Runner.window_path)
+        "frames": cfg.get("frames", 40), "path_frames": runner.path_frames({}), "path_start": runner.path_start({}),
         # how the dmmr-render runs were launched, for the report's measurement method
         "render_lp_num_threads": runner.render_env.get("LP_NUM_THREADS"),
         "launcher": " ".join(runner.render_mpi),  # with its --bind-to choice

@@ -239,7 +239,20 @@ def method_section(meta):
            "summed client cost (the lower middle one of an "
            "even count), every run is compared with the reference, and the scaling section lists each run's "
            "cost and frame times."] if int(meta.get("repeats", 1) or 1) > 1 else []),
-        accuracy_line(meta), ""])
+        *walk_lines(meta), accuracy_line(meta), ""])
+
+
+def walk_lines(meta):
+    """The method's line on a window of a longer walk (Runner.window_path), if the scale renders one."""
+    frames, p = int(meta.get("frames") or 0), int(meta.get("path_frames") or 0)
+    if not frames or p <= frames:
+        return []
+    start = int(meta.get("path_start") or 0)
+    return [f"- **Walkthrough:** each scene's fly-through is made with {p} control points and the runs render "
+            f"{frames} consecutive ones, points {start} to {start + frames - 1} (renumbered as frames 0 to "
+            f"{frames - 1}), so that the camera moves as far a frame as along the whole {p}-point walk: "
+            f"{p / frames:.1f} times less than if the same path were crossed in {frames} frames. Frame-to-frame "
+            "coherence is what the division's feedback (objects drawn lately, fitted costs) relies on."]
 
 
 def accuracy_line(meta):

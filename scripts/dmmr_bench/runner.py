@@ -75,6 +75,20 @@ def run_cmd(cmd, log, env=None, usage=None):
     return dt
 
 
+def window_lines(lines, start, count):
+    """Control points start .. start + count - 1 of a walkthrough (its text
+    lines: time, eye, rotation), their times moved so that the first is 0."""
+    if start < 0 or count < 1 or start + count > len(lines):
+        raise ValueError(f"window {start}..{start + count - 1} outside a walk of {len(lines)} points")
+    out, t0 = [], None
+    for line in lines[start:start + count]:
+        words = line.split()
+        t = float(words[0])
+        t0 = t if t0 is None else t0
+        out.append(" ".join([repr(t - t0)] + words[1:]))
+    return out
+
+
 class Runner:
     def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=(),
                  cost="wall", repeats=1):
@@ -161,7 +175,8 @@ class Runner:
         name = sc["name"]
         osgb, path, scene_dir = d / f"{name}.osgb", d / f"{name}.path", d / f"{name}.scene"
         frames = sc.get("frames", self.cfg.get("frames", 40))
-        if osgb.exists() and path.exists():
+        path_frames = self.path_frames(sc)
+        if osgb.exists() and path.exists() and len(self.path_lines(path)) == path_frames:
             progress.step(f"{name}: scene reused ({osgb})")
         else:
             kind = sc.get("kind", "replicate")
@@ -174,7 +189,7 @@ class Runner:
                 cmd += ["--geodes", sc["geodes"]]
             if "path" in sc:
                 cmd += ["--path", sc["path"]]
-            cmd += ["--seed", sc.get("seed", 1), "-o", osgb, "--walkthrough", path, "--frames", frames]
+            cmd += ["--seed", sc.get("seed", 1), "-o", osgb, "--walkthrough", path, "--frames", path_frames]
             dt = run_cmd(cmd, self.log)
             progress.step(f"{name}: generated in {dt:.1f} s")
         if (scene_dir / "manifest.json").exists():
@@ -184,7 +199,41 @@ class Runner:
                 shutil.rmtree(scene_dir)
             dt = run_cmd([self.bin / "dmmr-preprocess", osgb, "-o", scene_dir, "--no-progress"], self.log)
             progress.step(f"{name}: preprocessed in {dt:.1f} s")
+        if path_frames != frames:
+            path = self.window_path(path, frames, self.path_start(sc))
         return scene_dir, path, osgb
+
+    # --- a window of a longer walk ----------------------------------------
+    # The fly-through crosses the scene in however many control points it is
+    # made with, so 40 of them move the camera five times as far a frame as
+    # the paper suite's 200. A scale may set path_frames = P (> frames = F):
+    # the scene's walk is made with P points and the runs render F consecutive
+    # ones of it, from path_start (default: the middle F), so that the camera
+    # moves as it does in the longer walk and the frames fit this machine.
+    def path_frames(self, sc):
+        frames = int(sc.get("frames", self.cfg.get("frames", 40)))
+        p = int(sc.get("path_frames", self.cfg.get("path_frames", frames)))
+        if p < frames:
+            sys.exit(f"dmmr-bench: path_frames ({p}) must be at least frames ({frames})")
+        return p
+
+    def path_start(self, sc):
+        frames, p = int(sc.get("frames", self.cfg.get("frames", 40))), self.path_frames(sc)
+        start = int(sc.get("path_start", self.cfg.get("path_start", (p - frames) // 2)))
+        if not 0 <= start <= p - frames:
+            sys.exit(f"dmmr-bench: path_start ({start}) must be in 0..{p - frames} (path_frames - frames)")
+        return start
+
+    @staticmethod
+    def path_lines(path):
+        return [l for l in Path(path).read_text().splitlines() if l.strip()]
+
+    def window_path(self, path, frames, start):
+        sub = Path(path).with_suffix(f".points{start}-{start + frames - 1}.path")
+        tmp = sub.with_suffix(".path.tmp")
+        tmp.write_text("\n".join(window_lines(self.path_lines(path), start, frames)) + "\n")
+        tmp.replace(sub)  # atomic: a run never reads half a walk
+        return sub
 
     # --- runs -------------------------------------------------------------
     def common_opts(self, scene_dir, path, out_dir, stats):
@@ -223,9 +272,9 @@ class Runner:
             sys.exit("dmmr-bench: reference_stride must be at least 1")
         return k
 
-    @staticmethod
-    def strided_lines(path, k):
-        return [l for l in Path(path).read_text().splitlines() if l.strip()][::k]
+    @classmethod
+    def strided_lines(cls, path, k):
+        return cls.path_lines(path)[::k]
 
     @staticmethod
     def csv_rows(path):

@@ -32,6 +32,9 @@ check(s.get("accuracy_ok") is True, "summary.json accuracy_ok is true")
 check(s.get("repeats") == 2, "summary.json says each configuration ran twice")
 labels = [c["label"] for c in s.get("configurations", [])]
 check(labels == [f"render-c{n}" for n in CLIENTS], f"configurations are the plain runs with {CLIENTS} clients")
+# the small scale renders points 2..9 of a 12-point walk (path_frames = 12, frames = 8)
+check((s.get("frames"), s.get("path_frames"), s.get("path_start")) == (8, 12, 2),
+      f"the window of the walk in summary.json: {s.get('frames')}, {s.get('path_frames')}, {s.get('path_start')}")
 
 checks = s.get("targets_check", [])
 check(len(checks) == 8, f"eight targets checked ({len(checks)})")
@@ -97,6 +100,17 @@ for heading in ("## Measurement method", "## Scaling", "### Targets (issue 16)",
                 "## Plots"):
     check(heading in md, f"report.md has '{heading}'")
 check(md.index("## Measurement method") < md.index("## Scaling"), "the method comes before the figures")
+check("made with 12 control points and the runs render 8 consecutive ones, points 2 to 9" in md,
+      "the method names the window of the walk")
+for sc in s.get("scenes", []):
+    walk = Path(sc.get("walkthrough", ""))
+    check(walk.name == f"{sc['scene']}.points2-9.path" and walk.exists(), f"{sc['scene']}: the runs' walk {walk}")
+    if walk.exists():
+        full = [l.split() for l in walk.with_name(f"{sc['scene']}.path").read_text().splitlines() if l.strip()]
+        win = [l.split() for l in walk.read_text().splitlines() if l.strip()]
+        check(len(full) == 12 and len(win) == 8 and [w[1:] for w in win] == [f[1:] for f in full[2:10]],
+              f"{sc['scene']}: the window is points 2..9 of the 12-point walk")
+        check(float(win[0][0]) == 0.0, f"{sc['scene']}: the window's times start at 0")
 for words in ("LP_NUM_THREADS=0", "--bind-to none", "oversubscribed", "--cost cpu", "load average",
               "Scheduled frame time", "--in-flight", "**Repeats:**"):
     check(words in md, f"the method says {words!r}")
