@@ -19,6 +19,7 @@
 #include <string>
 #include <thread>
 
+#include "affinity.h"
 #include "cpu_time.h"
 #include "cull.h"
 #include "depth_pyramid.h"
@@ -1535,9 +1536,10 @@ class FailureReport {
 // from the loop or the stage's destructor's callees) goes to `escaped`, and
 // then `drain` runs, so the threads that feed this one never block on it.
 template <typename Stage, typename Loop, typename Escaped, typename Drain>
-std::thread startStage(std::function<std::unique_ptr<Stage>()> make, Loop loop,
+std::thread startStage(const char* name, std::function<std::unique_ptr<Stage>()> make, Loop loop,
                        std::promise<std::string>* ready, Escaped escaped, Drain drain) {
-  return std::thread([make, loop, ready, escaped, drain] {
+  return std::thread([name, make, loop, ready, escaped, drain] {
+    nameThisThread(name);
     std::unique_ptr<Stage> stage;
     std::string problem;
     runGuarded([&] { stage = make(); }, [&](const std::string& what) { problem = what; });
@@ -1641,6 +1643,7 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   std::thread visThread, renderThread;
   if (problem.empty()) {
     visThread = startStage<VisibilityStage>(
+        "dmmr-visibility",
         [&] { return std::make_unique<VisibilityStage>(scene, *host, opts, control); }, visLoop,
         &visReady, [&](const std::string& what) { failure.fail("visibility stage: " + what); },
         [&] {
@@ -1649,6 +1652,7 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
           visible.close();
         });
     renderThread = startStage<RenderStage>(
+        "dmmr-draw",
         [&] { return std::make_unique<RenderStage>(scene, *host, opts, control, effects); },
         renderLoop, &renderReady,
         [&](const std::string& what) { failure.fail("render stage: " + what); },

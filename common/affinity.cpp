@@ -1,8 +1,10 @@
 #include "affinity.h"
 
+#include <pthread.h>
 #include <sched.h>
 
 #include <cerrno>
+#include <cstring>
 #include <thread>
 
 namespace dmmr {
@@ -34,6 +36,12 @@ std::string placementWarning(int rank, int allowed_cpus, int wanted_cpus) {
          " but its GL stages want " + std::to_string(wanted_cpus) +
          "; the stages will share a core (mpirun binds ranks to a core by default: use "
          "--bind-to none on one machine, or --map-by ppr:1:node:PE=N on a cluster)";
+}
+
+void nameThisThread(const char* name) {
+  char buf[16] = {};
+  std::strncpy(buf, name, sizeof buf - 1);
+  ::pthread_setname_np(::pthread_self(), buf);  // a diagnostic: failure changes nothing
 }
 
 }  // namespace dmmr

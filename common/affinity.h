@@ -15,4 +15,8 @@ int allowedCpuCount();
 // client `rank`, both counts and the mpirun options that give it more CPUs.
 std::string placementWarning(int rank, int allowed_cpus, int wanted_cpus);
 
+// Names the calling thread (at most 15 characters are kept: Linux's limit), so
+// that top -H, perf --comm and gdb tell a rank's stage threads apart.
+void nameThisThread(const char* name);
+
 }  // namespace dmmr

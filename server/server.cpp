@@ -18,6 +18,7 @@
 #include <sstream>
 #include <thread>
 
+#include "affinity.h"
 #include "atomic_file.h"
 #include "cpu_time.h"
 #include "error.h"
@@ -736,6 +737,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
     dispatcher.returned(client, frame, region);
   });
   std::thread assembling([&] {
+    nameThisThread("dmmr-assemble");
     runGuarded([&] { assembler.run(); },
                [&](const std::string& what) { assembler.markFailed("server: " + what); });
   });

@@ -2,8 +2,10 @@
 // GL stages (mpirun's default binding of one core per rank).
 #include <gtest/gtest.h>
 
+#include <pthread.h>
 #include <sched.h>
 
+#include <string>
 #include <thread>
 
 #include "affinity.h"
@@ -75,4 +77,30 @@ TEST(AllowedCpuCount, CountsTheAffinityMask) {
     EXPECT_EQ(two, 2);
   }
   EXPECT_EQ(allowedCpuCount(), before);
+}
+
+// What a thread reads back as its own name (pthread_getname_np).
+static std::string ownName() {
+  char buf[64] = {};
+  pthread_getname_np(pthread_self(), buf, sizeof buf);
+  return buf;
+}
+
+TEST(NameThisThread, NamesOnlyTheCallingThread) {
+  std::string before = ownName(), inside;
+  std::thread([&] {
+    dmmr::nameThisThread("dmmr-draw");
+    inside = ownName();
+  }).join();
+  EXPECT_EQ(inside, "dmmr-draw");
+  EXPECT_EQ(ownName(), before);
+}
+
+TEST(NameThisThread, KeepsTheFirstFifteenCharactersOfALongName) {
+  std::string inside;
+  std::thread([&] {
+    dmmr::nameThisThread("dmmr-visibility-stage");  // 21 characters: Linux keeps 15
+    inside = ownName();
+  }).join();
+  EXPECT_EQ(inside, "dmmr-visibility");
 }
