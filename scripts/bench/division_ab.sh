@@ -3,7 +3,9 @@
 # several option sets on the scaling suite's medium scenes (plants4, plants8,
 # monuments16 at 1024x768, 40 frames; DMMR_BENCH_SCENES may also name
 # skullmesh4, issue 15's four 2.5M-triangle skull meshes in clusters, at
-# 512x512 along walkthroughs/skullmesh4.path), with 1 client (the base of
+# 512x512 along walkthroughs/skullmesh4.path, 48 frames a turn, and
+# skullmesh4-192, the same orbit in 192 frames: walkthroughs/skullmesh4-192.path,
+# of which every fourth point is skullmesh4.path's), with 1 client (the base of
 # efficiency, default options) and with each count in DMMR_BENCH_CLIENTS
 # (default "4 16").
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
@@ -33,13 +35,14 @@ source scripts/bench/lib.sh
 # Sets sc, path, w and h for scene $1, making it when missing.
 scene_of() {
   case $1 in
-    skullmesh4)
+    skullmesh4 | skullmesh4-192)
       [ -f out/bench/skullmesh4.osgb ] || $bin/dmmr-scenegen replicate \
         --input "$models/skull/skull.obj" --subdivide 5 --copies 4 --path around --frames 48 \
         -o out/bench/skullmesh4.osgb --walkthrough out/bench/skullmesh4.generated.path >/dev/null
       [ -d out/bench/skullmesh4.scene ] || $bin/dmmr-preprocess out/bench/skullmesh4.osgb \
         -o out/bench/skullmesh4.scene --no-progress >/dev/null
       sc=out/bench/skullmesh4.scene path=walkthroughs/skullmesh4.path w=512 h=512
+      if [ "$1" = skullmesh4-192 ]; then path=walkthroughs/skullmesh4-192.path; fi
       ;;
     plants4 | plants8)
       scene "$1" replicate --of plant --copies "${1#plants}" --triangles 400000 --geodes 5000 \
