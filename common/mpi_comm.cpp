@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <climits>
+#include <deque>
+#include <mutex>
 #include <thread>
 
 #include "error.h"
@@ -31,6 +33,20 @@ void check(int rc, const char* call) {
   MPI_Error_string(rc, msg, &len);
   throw Error(std::string(call) + " failed: " + msg);
 }
+
+// Sleeps between polls of something another process will do: 20 us at
+// first, doubling up to 0.5 ms (negligible against frame times), so that a
+// wait costs no core, where Open MPI's own blocking calls spin one.
+class Backoff {
+ public:
+  void nap() {
+    std::this_thread::sleep_for(nap_);
+    nap_ = std::min(nap_ * 2, std::chrono::microseconds(500));
+  }
+
+ private:
+  std::chrono::microseconds nap_{20};
+};
 
 }  // namespace
 
@@ -94,12 +110,11 @@ std::optional<Message> Comm::recvFor(int source, double timeout_s) {
   // Matched probe: the message found is the one received, even when other
   // threads receive too.
   // OpenMPI's blocking probe spins a core while it waits; on a node whose
-  // cores render, that steals their time. Poll instead, sleeping between
-  // polls with a backoff capped at 0.5 ms (negligible against frame times).
+  // cores render, that steals their time. Poll instead (Backoff).
   MPI_Status st;
   MPI_Message handle;
   int found = 0;
-  std::chrono::microseconds nap{20};
+  Backoff backoff;
   auto start = std::chrono::steady_clock::now();
   for (;;) {
     check(MPI_Improbe(source == kAnySource ? MPI_ANY_SOURCE : source, MPI_ANY_TAG, MPI_COMM_WORLD,
@@ -109,8 +124,7 @@ std::optional<Message> Comm::recvFor(int source, double timeout_s) {
     if (timeout_s >= 0 &&
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > timeout_s)
       return std::nullopt;
-    std::this_thread::sleep_for(nap);
-    nap = std::min(nap * 2, std::chrono::microseconds(500));
+    backoff.nap();
   }
   int count = 0;
   check(MPI_Get_count(&st, MPI_BYTE, &count), "MPI_Get_count");
@@ -129,6 +143,65 @@ void Comm::broadcast(int root, int* value) {
 void Comm::abort(int code) {
   MPI_Abort(MPI_COMM_WORLD, code);
   std::abort();
+}
+
+struct SendBatch::Impl {
+  struct Send {
+    int dest = 0;
+    MPI_Request request = MPI_REQUEST_NULL;
+    std::vector<uint8_t> bytes;
+  };
+  std::deque<Send> sends;  // in the order posted
+};
+
+SendBatch::SendBatch(Comm&) : impl_(std::make_unique<Impl>()) {}
+
+SendBatch::~SendBatch() {
+  try {
+    wait();
+  } catch (...) {
+    // MPI failed under a send: its buffer may still be read. Keep them all;
+    // the job is ending.
+    static std::mutex mu;
+    static auto* kept = new std::vector<std::unique_ptr<Impl>>;
+    std::lock_guard<std::mutex> lock(mu);
+    kept->push_back(std::move(impl_));
+  }
+}
+
+void SendBatch::post(int dest, Tag tag, std::vector<uint8_t> bytes) {
+  if (bytes.size() > size_t(INT_MAX)) throw Error(std::string(tagName(tag)) + " message too large");
+  Impl::Send& s = impl_->sends.emplace_back();
+  s.dest = dest;
+  s.bytes = std::move(bytes);
+  int rc = MPI_Isend(s.bytes.data(), int(s.bytes.size()), MPI_BYTE, dest, int(tag), MPI_COMM_WORLD,
+                     &s.request);
+  if (rc != MPI_SUCCESS) {
+    impl_->sends.pop_back();  // never started: nothing reads the buffer
+    check(rc, "MPI_Isend");
+  }
+}
+
+bool SendBatch::poll() {
+  auto& sends = impl_->sends;
+  for (auto it = sends.begin(); it != sends.end();) {
+    int done = 0;
+    check(MPI_Test(&it->request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+    it = done ? sends.erase(it) : std::next(it);
+  }
+  return sends.empty();
+}
+
+void SendBatch::wait(const std::function<void(int dest)>& waiting_for) {
+  Backoff backoff;
+  while (!poll()) {
+    if (waiting_for) waiting_for(impl_->sends.front().dest);
+    backoff.nap();
+  }
+}
+
+size_t SendBatch::inFlight() const {
+  return impl_ ? impl_->sends.size() : 0;
 }
 
 }  // namespace dmmr

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -52,6 +54,39 @@ class Comm {
 
  private:
   int rank_ = 0, size_ = 1;
+};
+
+// Sends in flight together (MPI_Isend), each buffer owned here until its send
+// completes. A blocking send of a message above the eager limit waits until
+// the receiver takes it, one receiver after another, and Open MPI spins a
+// core (sched_yield) while it waits: a server handing 16 clients their jobs
+// waited for each client's next poll in turn. Posted together, the waits
+// overlap, and wait() sleeps between polls as Comm::recvFor does. Messages
+// to one destination are received in the order posted. A batch is used by
+// one thread at a time; other threads may use the Comm meanwhile
+// (MPI_THREAD_MULTIPLE).
+class SendBatch {
+ public:
+  explicit SendBatch(Comm& comm);
+  // Waits for what is still in flight; should that fail (MPI failing), the
+  // buffers are kept alive for the rest of the process, never freed under a
+  // send.
+  ~SendBatch();
+  SendBatch(const SendBatch&) = delete;
+  SendBatch& operator=(const SendBatch&) = delete;
+
+  void post(int dest, Tag tag, std::vector<uint8_t> bytes);
+  // Frees the buffers of completed sends; true when none is in flight.
+  bool poll();
+  // Returns once every send posted has completed. `waiting_for`, if given,
+  // hears the destination of the oldest send still in flight before each
+  // sleep (for a watchdog's message).
+  void wait(const std::function<void(int dest)>& waiting_for = {});
+  size_t inFlight() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace dmmr

@@ -487,7 +487,7 @@ class Assembler {
 class TileDispatcher {
  public:
   TileDispatcher(Comm& comm, Assembler& assembler, int clients, int window)
-      : comm_(comm), assembler_(assembler), pool_(0, clients, window), given_(size_t(clients)) {}
+      : sending_(comm), assembler_(assembler), pool_(0, clients, window), given_(size_t(clients)) {}
 
   void add(std::vector<FrameJob> jobs) {
     std::lock_guard<std::mutex> lock(mu_);
@@ -502,6 +502,13 @@ class TileDispatcher {
   // in order; under --balance auto other strategies' jobs come and go
   // between drained blocks, and a pool's client also returns its own region
   // of the same frame: those are not this dealer's to count).
+  // Sends nothing more: the clients are told to shut down next, and a job
+  // posted after that would be in flight for ever.
+  void close() {
+    std::lock_guard<std::mutex> lock(mu_);
+    closed_ = true;
+  }
+
   void returned(int client, uint32_t frame, const Rect& region) {
     std::lock_guard<std::mutex> lock(mu_);
     auto& given = given_[size_t(client - 1)];
@@ -512,18 +519,23 @@ class TileDispatcher {
   }
 
  private:
+  // Jobs go out without waiting for the client to take them (SendBatch):
+  // this runs on the assembler's thread too, which must go on receiving.
   void pump() {
+    sending_.poll();
+    if (closed_) return;
     for (int k = 0; k < int(given_.size()); ++k)
       for (uint32_t id : pool_.refill(k)) {
         auto it = jobs_.find(id);
         assembler_.owe(it->second.frame, k + 1);
-        comm_.send(k + 1, Tag::Job, encodeJob(it->second));
+        sending_.post(k + 1, Tag::Job, encodeJob(it->second));
         given_[size_t(k)].push_back({id, it->second.frame, it->second.region});
         jobs_.erase(it);
       }
   }
 
-  Comm& comm_;
+  SendBatch sending_;  // under mu_
+  bool closed_ = false;
   Assembler& assembler_;
   std::mutex mu_;
   TilePool pool_;
@@ -848,16 +860,20 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       // jobs for no client in particular (dynamic tiles, a pool's parts) go
       // to the dispatcher after the others, so that each client's own
       // region comes first in its queue.
+      // The jobs go out together (SendBatch): each client takes its own
+      // when it polls next, and the planner waits for the last of them, not
+      // for each in turn.
       std::vector<FrameJob> pool;
+      SendBatch batch(comm);
       for (auto& [k, j] : jobs) {
         if (k < 0) {
           pool.push_back(std::move(j));
           continue;
         }
         if (assembler.failed()) break;
-        assembler.sendingTo(k);
-        comm.send(k, Tag::Job, encodeJob(j));
+        batch.post(k, Tag::Job, encodeJob(j));
       }
+      batch.wait([&](int k) { assembler.sendingTo(k); });
       assembler.sendingTo(0);
       if (!pool.empty() && !assembler.failed()) dispatcher.add(std::move(pool));
       assembler.setSendMs(f, msBetween(ts, Clock::now()));
@@ -881,6 +897,7 @@ int runServer(Comm& comm, const ServerOptions& opts) {
   }
   // Sub-frames still on their way complete frames that every client
   // finished before a failure.
+  dispatcher.close();
   shutdownClients(comm, clients, opts.client_timeout_s,
                   [&](const Message& m) { assembler.take(m); });
   if (assembler.failed()) {
