@@ -1626,25 +1626,21 @@ int runClient(Comm& comm, const ClientOptions& client_opts) {
   };
   auto renderLoop = [&](RenderStage* stage) {
     std::vector<SubFrame> batch;  // held until a job says flush (static tiles)
-    // Sub-frames on their way: the stage goes on to its next job while the
-    // server takes them (a blocking send waited for the server's next poll,
-    // spinning this core).
-    SendBatch sending(comm);
     while (auto v = visible.pop()) {
       if (!stage || failure.failed()) continue;
       try {
         batch.push_back(stage->run(*v));
         if (!v->job.flush) continue;
+        // Until the server has the sub-frame (asleep meanwhile): a client
+        // killed during its next job must not take a finished frame with it.
         auto ts = Clock::now();
-        sending.poll();
-        sending.post(0, Tag::SubFrame, encodeSubFrames(batch));
+        comm.send(0, Tag::SubFrame, encodeSubFrames(batch));
         batch.clear();
         stage->sent(msSince(ts));
       } catch (const std::exception& e) {
         failure.fail(std::string("render stage: ") + e.what());
       }
     }
-    sending.wait();  // before the main thread's Bye
   };
   std::thread visThread, renderThread;
   if (problem.empty()) {

@@ -98,8 +98,19 @@ Comm::~Comm() {
 
 void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
   if (bytes.size() > size_t(INT_MAX)) throw Error(std::string(tagName(tag)) + " message too large");
-  check(MPI_Send(bytes.data(), int(bytes.size()), MPI_BYTE, dest, int(tag), MPI_COMM_WORLD),
-        "MPI_Send");
+  // MPI_Send would spin a core until the receiver takes a message above the
+  // eager limit; this waits as long, asleep between polls (Backoff).
+  MPI_Request request = MPI_REQUEST_NULL;
+  check(MPI_Isend(bytes.data(), int(bytes.size()), MPI_BYTE, dest, int(tag), MPI_COMM_WORLD,
+                  &request),
+        "MPI_Isend");
+  Backoff backoff;
+  for (;;) {
+    int done = 0;
+    check(MPI_Test(&request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+    if (done) return;
+    backoff.nap();
+  }
 }
 
 Message Comm::recv(int source) {

@@ -43,6 +43,9 @@ class Comm {
   int rank() const { return rank_; }
   int size() const { return size_; }
 
+  // Returns once `dest` has taken the message (above the eager limit) or it
+  // is buffered, asleep between polls meanwhile; a rank that must not wait
+  // for one receiver after another posts a SendBatch instead.
   void send(int dest, Tag tag, const std::vector<uint8_t>& bytes);
   // Blocks for the next message from `source` (or kAnySource), any tag.
   Message recv(int source);
