@@ -5,7 +5,6 @@
 #include <chrono>
 #include <climits>
 #include <deque>
-#include <mutex>
 #include <thread>
 
 #include "error.h"
@@ -47,6 +46,13 @@ class Backoff {
  private:
   std::chrono::microseconds nap_{20};
 };
+
+// Whether the send behind `request` has completed (then freed).
+bool completed(MPI_Request* request) {
+  int done = 0;
+  check(MPI_Test(request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+  return done != 0;
+}
 
 }  // namespace
 
@@ -105,12 +111,7 @@ void Comm::send(int dest, Tag tag, const std::vector<uint8_t>& bytes) {
                   &request),
         "MPI_Isend");
   Backoff backoff;
-  for (;;) {
-    int done = 0;
-    check(MPI_Test(&request, &done, MPI_STATUS_IGNORE), "MPI_Test");
-    if (done) return;
-    backoff.nap();
-  }
+  while (!completed(&request)) backoff.nap();
 }
 
 Message Comm::recv(int source) {
@@ -171,12 +172,9 @@ SendBatch::~SendBatch() {
   try {
     wait();
   } catch (...) {
-    // MPI failed under a send: its buffer may still be read. Keep them all;
-    // the job is ending.
-    static std::mutex mu;
-    static auto* kept = new std::vector<std::unique_ptr<Impl>>;
-    std::lock_guard<std::mutex> lock(mu);
-    kept->push_back(std::move(impl_));
+    // MPI failed under a send: its buffer may still be read. Leaked on
+    // purpose; the job is ending.
+    (void)impl_.release();
   }
 }
 
@@ -195,11 +193,8 @@ void SendBatch::post(int dest, Tag tag, std::vector<uint8_t> bytes) {
 
 bool SendBatch::poll() {
   auto& sends = impl_->sends;
-  for (auto it = sends.begin(); it != sends.end();) {
-    int done = 0;
-    check(MPI_Test(&it->request, &done, MPI_STATUS_IGNORE), "MPI_Test");
-    it = done ? sends.erase(it) : std::next(it);
-  }
+  for (auto it = sends.begin(); it != sends.end();)
+    it = completed(&it->request) ? sends.erase(it) : std::next(it);
   return sends.empty();
 }
 
@@ -212,7 +207,7 @@ void SendBatch::wait(const std::function<void(int dest)>& waiting_for) {
 }
 
 size_t SendBatch::inFlight() const {
-  return impl_ ? impl_->sends.size() : 0;
+  return impl_->sends.size();
 }
 
 }  // namespace dmmr

@@ -70,6 +70,7 @@ class Comm {
 // (MPI_THREAD_MULTIPLE).
 class SendBatch {
  public:
+  // `comm`: the initialised MPI its sends go on; it outlives the batch.
   explicit SendBatch(Comm& comm);
   // Waits for what is still in flight; should that fail (MPI failing), the
   // buffers are kept alive for the rest of the process, never freed under a

@@ -497,11 +497,6 @@ class TileDispatcher {
     pump();
   }
 
-  // `client` (1-based) returned the sub-frame of `region` of `frame`: its
-  // oldest tile in flight when that is one of this dealer's (clients answer
-  // in order; under --balance auto other strategies' jobs come and go
-  // between drained blocks, and a pool's client also returns its own region
-  // of the same frame: those are not this dealer's to count).
   // Sends nothing more: the clients are told to shut down next, and a job
   // posted after that would be in flight for ever.
   void close() {
@@ -509,6 +504,11 @@ class TileDispatcher {
     closed_ = true;
   }
 
+  // `client` (1-based) returned the sub-frame of `region` of `frame`: its
+  // oldest tile in flight when that is one of this dealer's (clients answer
+  // in order; under --balance auto other strategies' jobs come and go
+  // between drained blocks, and a pool's client also returns its own region
+  // of the same frame: those are not this dealer's to count).
   void returned(int client, uint32_t frame, const Rect& region) {
     std::lock_guard<std::mutex> lock(mu_);
     auto& given = given_[size_t(client - 1)];

@@ -80,13 +80,8 @@ def window_lines(lines, start, count):
     lines: time, eye, rotation), their times moved so that the first is 0."""
     if start < 0 or count < 1 or start + count > len(lines):
         raise ValueError(f"window {start}..{start + count - 1} outside a walk of {len(lines)} points")
-    out, t0 = [], None
-    for line in lines[start:start + count]:
-        words = line.split()
-        t = float(words[0])
-        t0 = t if t0 is None else t0
-        out.append(" ".join([repr(t - t0)] + words[1:]))
-    return out
+    t0 = float(lines[start].split()[0])
+    return [" ".join([repr(float(w[0]) - t0)] + w[1:]) for w in (l.split() for l in lines[start:start + count])]
 
 
 class Runner:
@@ -174,8 +169,7 @@ class Runner:
         d.mkdir(parents=True, exist_ok=True)
         name = sc["name"]
         osgb, path, scene_dir = d / f"{name}.osgb", d / f"{name}.path", d / f"{name}.scene"
-        frames = sc.get("frames", self.cfg.get("frames", 40))
-        path_frames = self.path_frames(sc)
+        frames, path_frames = self.frames(sc), self.path_frames(sc)
         if osgb.exists() and path.exists() and len(self.path_lines(path)) == path_frames:
             progress.step(f"{name}: scene reused ({osgb})")
         else:
@@ -210,15 +204,19 @@ class Runner:
     # the scene's walk is made with P points and the runs render F consecutive
     # ones of it, from path_start (default: the middle F), so that the camera
     # moves as it does in the longer walk and the frames fit this machine.
+    def frames(self, sc):
+        """The frames a scene's runs render."""
+        return int(sc.get("frames", self.cfg.get("frames", 40)))
+
     def path_frames(self, sc):
-        frames = int(sc.get("frames", self.cfg.get("frames", 40)))
+        frames = self.frames(sc)
         p = int(sc.get("path_frames", self.cfg.get("path_frames", frames)))
         if p < frames:
             sys.exit(f"dmmr-bench: path_frames ({p}) must be at least frames ({frames})")
         return p
 
     def path_start(self, sc):
-        frames, p = int(sc.get("frames", self.cfg.get("frames", 40))), self.path_frames(sc)
+        frames, p = self.frames(sc), self.path_frames(sc)
         start = int(sc.get("path_start", self.cfg.get("path_start", (p - frames) // 2)))
         if not 0 <= start <= p - frames:
             sys.exit(f"dmmr-bench: path_start ({start}) must be in 0..{p - frames} (path_frames - frames)")
