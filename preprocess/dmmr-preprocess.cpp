@@ -60,6 +60,16 @@ int main(int argc, char** argv) {
                    "coordinates and the %llu triangles using them\n",
                    (unsigned long long)s.nonfinite_vertices,
                    (unsigned long long)s.dropped_triangles);
+    if (s.bad_index_triangles)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: dropped %llu triangles naming a vertex their mesh "
+                   "does not have\n",
+                   (unsigned long long)s.bad_index_triangles);
+    if (s.camera_fixed_subtrees)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: skipped %llu subtrees under ABSOLUTE_RF transforms "
+                   "(fixed to the camera, like a HUD: not part of the model)\n",
+                   (unsigned long long)s.camera_fixed_subtrees);
     if (s.degenerate_triangles)
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: dropped %llu degenerate triangles (corners that "

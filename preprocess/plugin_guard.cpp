@@ -52,6 +52,7 @@ bool allowedReference(const std::string& filename, ReadKind kind, std::string* w
 ModelReader modelReaderFor(const std::string& filename) {
   std::string ext = lowerExtension(filename);
   if (kAssimpModels.count(ext)) return ModelReader::Assimp;
+  if (ext == "ply") return ModelReader::Ply;
   return kModels.count(ext) ? ModelReader::Osg : ModelReader::None;
 }
 

@@ -26,9 +26,11 @@ enum class ReadKind { Node, Image, Object, Other };
 bool allowedReference(const std::string& filename, ReadKind kind, std::string* why);
 
 // Which library reads an input model, by its extension: assimp for the
-// formats OSG 3.6 has no plugin for (glTF 2.0, FBX, 3MF, OFF), OSG for the
-// rest of the allow-list; None for anything else (images, buffers, text).
-enum class ModelReader { None, Osg, Assimp };
+// formats OSG 3.6 has no plugin for (glTF 2.0, FBX, 3MF, OFF), dmmr's own
+// strict reader for PLY (ply_reader.h: OSG's plugin crashes on malformed
+// files), OSG for the rest of the allow-list; None for anything else
+// (images, buffers, text).
+enum class ModelReader { None, Osg, Assimp, Ply };
 ModelReader modelReaderFor(const std::string& filename);
 
 class PluginGuard {

@@ -1,11 +1,16 @@
 #include "preprocess.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -27,6 +32,7 @@
 #include "cluster.h"
 #include "error.h"
 #include "plugin_guard.h"
+#include "ply_reader.h"
 
 namespace fs = std::filesystem;
 
@@ -254,6 +260,13 @@ void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedS
   Mat4d childWorld = world;
   NodeKind kind = NodeKind::Group;
   if (auto* t = node->asTransform()) {
+    // ABSOLUTE_RF puts its subtree in the camera's frame (a HUD): OSG draws
+    // it fixed on the screen, which no walkthrough of the model reproduces.
+    // ABSOLUTE_RF_INHERIT_VIEWPOINT is world placement without the parents'.
+    if (t->getReferenceFrame() == osg::Transform::ABSOLUTE_RF) {
+      ++stats_.camera_fixed_subtrees;
+      return;
+    }
     osg::Matrixd local;  // identity; the transform composes its own matrix in
     t->computeLocalToWorldMatrix(local, nullptr);
     Mat4d m = Mat4d::fromOsgPtr(local.ptr());
@@ -480,7 +493,11 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   uint32_t firstIndex = uint32_t(g->indices.size());
   for (size_t t = 0; t + 2 < tris.size(); t += 3) {
     uint32_t v[3] = {tris[t], tris[t + 1], tris[t + 2]};
-    if (v[0] >= nv || v[1] >= nv || v[2] >= nv || !finite[v[0]] || !finite[v[1]] || !finite[v[2]]) {
+    if (v[0] >= nv || v[1] >= nv || v[2] >= nv) {
+      ++stats_.bad_index_triangles;
+      continue;
+    }
+    if (!finite[v[0]] || !finite[v[1]] || !finite[v[2]]) {
       ++stats_.dropped_triangles;
       continue;
     }
@@ -658,10 +675,74 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
   return files;
 }
 
+// A third-party reader (an OSG plugin, assimp) that crashes on a malformed
+// file would end the run with a bare signal. While one reads, a fatal signal
+// prints which file it was reading and exits 1 instead. The partial scene
+// directory cannot be removed safely from a signal handler; the next run
+// removes it (removeStalePartials). Only async-signal-safe calls in the
+// handler: the message is composed before the read.
+class ReaderCrashGuard {
+ public:
+  ReaderCrashGuard(const std::string& file, const fs::path& partial) {
+    std::string m = "dmmr-preprocess: " + file +
+                    ": the reader of this format crashed on it (a malformed file, or a bug in "
+                    "the reader); nothing was written to the scene (" +
+                    partial.string() + " is removed by the next run)\n";
+    size_t n = std::min(m.size(), sizeof(message_) - 1);
+    std::memcpy(message_, m.data(), n);
+    message_size_ = n;
+    struct sigaction sa {};
+    sa.sa_handler = &ReaderCrashGuard::onSignal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND | SA_ONSTACK;
+    for (size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &sa, &previous_[i]);
+  }
+  ~ReaderCrashGuard() {
+    for (size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &previous_[i], nullptr);
+  }
+  ReaderCrashGuard(const ReaderCrashGuard&) = delete;
+  ReaderCrashGuard& operator=(const ReaderCrashGuard&) = delete;
+
+ private:
+  static void onSignal(int) {
+    ssize_t ignored = ::write(2, message_, message_size_);
+    (void)ignored;
+    ::_exit(1);
+  }
+  static constexpr std::array<int, 4> kSignals = {SIGSEGV, SIGBUS, SIGFPE, SIGILL};
+  static inline char message_[8192];
+  static inline size_t message_size_ = 0;
+  std::array<struct sigaction, 4> previous_{};
+};
+
+// Test hook: DMMR_INJECT_FAULT=preprocess-read-crash makes the read of every
+// input crash, as a reader's bug would (preprocess_test).
+void injectReadCrash() {
+  const char* spec = std::getenv("DMMR_INJECT_FAULT");
+  if (spec && std::strcmp(spec, "preprocess-read-crash") == 0) ::raise(SIGSEGV);
+}
+
+// Partial scene directories of `out` (OUT.partial-PID) whose process is gone:
+// left by a run that was killed or whose reader crashed.
+void removeStalePartials(const fs::path& out) {
+  std::error_code ec;
+  fs::path dir = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  const std::string prefix = out.filename().string() + ".partial-";
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    char* end = nullptr;
+    long pid = std::strtol(name.c_str() + prefix.size(), &end, 10);
+    if (pid <= 0 || *end != '\0') continue;
+    if (::kill(pid_t(pid), 0) == -1 && errno == ESRCH) fs::remove_all(e.path(), ec);
+  }
+}
+
 osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (!fs::exists(path)) throw Error(fileError(path, "no such file"));
   if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
   if (modelReaderFor(path) == ModelReader::Assimp) return readWithAssimp(path);
+  if (modelReaderFor(path) == ModelReader::Ply) return readPly(path);
   osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
   if (!node)
     throw Error(fileError(path,
@@ -707,6 +788,7 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
   fs::path tmp = out;
   tmp += ".partial-" + std::to_string(::getpid());
   fs::remove_all(tmp);
+  removeStalePartials(out);
   PreprocessStats stats;
   uint64_t skipped = 0;
   try {
@@ -718,6 +800,8 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
     for (const auto& file : files) {
       osg::ref_ptr<osg::Node> model;
       try {
+        ReaderCrashGuard crash_guard(file, tmp);
+        injectReadCrash();
         model = readModel(file);
       } catch (const Error& e) {
         if (!opts.skip_unreadable) throw;

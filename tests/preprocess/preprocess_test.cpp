@@ -210,6 +210,74 @@ TEST(Preprocess, NonFiniteVerticesAreDroppedWithTheirTrianglesAndCounted) {
   for (float f : geo.positions) EXPECT_TRUE(std::isfinite(f));
 }
 
+// Counted apart from the non-finite vertices' triangles, so that the warning
+// names what happened.
+TEST(Preprocess, TrianglesNamingAMissingVertexAreDroppedAndCountedApart) {
+  TempDir dir;
+  osg::ref_ptr<osg::Geode> g = cube();
+  osg::Geometry* geom = g->getDrawable(0)->asGeometry();
+  auto* bad = new osg::DrawElementsUInt(GL_TRIANGLES);
+  for (unsigned i : {0u, 1u, 99u}) bad->push_back(i);
+  geom->addPrimitiveSet(bad);
+  PreprocessStats st = run({writeModel(dir, g.get(), "badindex.osgb")}, dir / "scene");
+  EXPECT_EQ(st.bad_index_triangles, 1u);
+  EXPECT_EQ(st.dropped_triangles, 0u);
+  EXPECT_EQ(st.nonfinite_vertices, 0u);
+  EXPECT_EQ(st.triangles, 12u);
+}
+
+// ABSOLUTE_RF is the camera's frame in OSG (a HUD): skipped and counted.
+// ABSOLUTE_RF_INHERIT_VIEWPOINT places its subtree in the world by its own
+// matrix, without its parents'.
+TEST(Preprocess, AbsoluteReferenceFrames) {
+  TempDir dir;
+  osg::ref_ptr<osg::MatrixTransform> root =
+      new osg::MatrixTransform(osg::Matrixd::translate(100, 0, 0));
+  osg::ref_ptr<osg::MatrixTransform> hud =
+      new osg::MatrixTransform(osg::Matrixd::translate(0, 5, 0));
+  hud->setReferenceFrame(osg::Transform::ABSOLUTE_RF);
+  hud->addChild(cube());
+  osg::ref_ptr<osg::MatrixTransform> world =
+      new osg::MatrixTransform(osg::Matrixd::translate(0, 0, 7));
+  world->setReferenceFrame(osg::Transform::ABSOLUTE_RF_INHERIT_VIEWPOINT);
+  world->addChild(cube());
+  root->addChild(hud);
+  root->addChild(world);
+  PreprocessStats st = run({writeModel(dir, root.get(), "rf.osgb")}, dir / "scene");
+  EXPECT_EQ(st.camera_fixed_subtrees, 1u);
+  EXPECT_EQ(st.objects, 1u);
+  Scene s = loadScene(dir / "scene");
+  ASSERT_EQ(s.objects.size(), 1u);
+  EXPECT_NEAR(s.objects[0].box.center().x, 0, 1e-9);
+  EXPECT_NEAR(s.objects[0].box.center().z, 7, 1e-9);
+}
+
+// A reader that crashes (an OSG plugin on a malformed file) ends the run
+// with a message naming the file and exit status 1, not a bare signal; the
+// partial directory it leaves is removed by the next run.
+TEST(PreprocessCli, AReaderCrashNamesTheFileAndTheNextRunCleansUp) {
+  TempDir dir;
+  std::string model = writeModel(dir, cube().get(), "crash.osgb");
+  int status = 0;
+  std::string out = dmmr::test::runCapture("DMMR_INJECT_FAULT=preprocess-read-crash " +
+                                               dmmr::test::tool("dmmr-preprocess") + " " + model +
+                                               " -o " + (dir / "scene") + " --no-progress",
+                                           &status);
+  EXPECT_EQ(status, 1) << out;
+  EXPECT_NE(out.find(model + ": the reader of this format crashed"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "scene"));
+  int partials = 0;
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    partials += e.path().filename().string().rfind("scene.partial-", 0) == 0;
+  EXPECT_EQ(partials, 1);
+  out = dmmr::test::runCapture(dmmr::test::tool("dmmr-preprocess") + " " + model + " -o " +
+                                   (dir / "scene") + " --no-progress",
+                               &status);
+  EXPECT_EQ(status, 0) << out;
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    EXPECT_NE(e.path().filename().string().rfind("scene.partial-", 0), 0u) << e.path();
+}
+
 TEST(Preprocess, TrianglesWithCoincidingCornersAreDroppedAndCounted) {
   TempDir dir;
   auto* v = new osg::Vec3Array;
