@@ -758,6 +758,9 @@ class Culler {
   // alone.
   std::vector<uint32_t> testPyramid(const std::vector<uint32_t>& candidates, const FrameJob& job,
                                     Decision* d, const Rect* dirty = nullptr) {
+    // A region of no pixels (more clients than the frame has pixels, or a
+    // pool part left empty) shows nothing.
+    if (job.region.empty()) return {};
     // Rasterising what was drawn is drawing, not deciding: wait for it
     // before the readback is timed.
     gl_.renderer.finish();

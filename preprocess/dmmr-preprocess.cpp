@@ -70,6 +70,11 @@ int main(int argc, char** argv) {
                    "dmmr-preprocess: warning: skipped %llu subtrees under ABSOLUTE_RF transforms "
                    "(fixed to the camera, like a HUD: not part of the model)\n",
                    (unsigned long long)s.camera_fixed_subtrees);
+    if (s.billboards)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: %llu billboards are drawn as modelled at their "
+                   "positions, not turned to face the eye\n",
+                   (unsigned long long)s.billboards);
     if (s.degenerate_triangles)
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: dropped %llu degenerate triangles (corners that "

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <osg/Billboard>
 #include <osg/Geode>
 #include <osg/Geometry>
 #include <osg/LOD>
@@ -23,6 +24,7 @@
 #include <osg/Transform>
 #include <osg/TriangleIndexFunctor>
 #include <osgDB/ReadFile>
+#include <tuple>
 #include <unordered_map>
 
 #include <meshoptimizer.h>
@@ -108,8 +110,22 @@ bool perVertex(const osg::Array* a, size_t nv) {
   return a && a->getBinding() == osg::Array::BIND_PER_VERTEX && a->getNumElements() == nv;
 }
 
+// Colours bound one per primitive set: each set's vertices take its colour
+// (a vertex two sets share is stored once for each).
+bool colorsPerPrimitiveSet(const osg::Geometry& g) {
+  const osg::Array* a = g.getColorArray();
+  return a && a->getBinding() == osg::Array::BIND_PER_PRIMITIVE_SET &&
+         a->getNumElements() == g.getNumPrimitiveSets();
+}
+
 // Converts an osg::Image to RGBA8, bottom row first. Returns false for pixel
 // formats dmmr does not take (the texture is then left off, with a warning).
+// A texture file holds repeat or clamp per axis; a mirrored repeat is stored
+// as a repeat (docs/scene-format.md).
+bool repeats(osg::Texture::WrapMode m) {
+  return m == osg::Texture::REPEAT || m == osg::Texture::MIRROR;
+}
+
 bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData* out) {
   if (img.getDataType() != GL_UNSIGNED_BYTE || img.s() <= 0 || img.t() <= 0 || img.r() != 1)
     return false;
@@ -145,11 +161,8 @@ bool convertImage(const osg::Image& img, const osg::Texture2D& tex, TextureData*
       dst[3] = comps == 4 ? src[3] : (comps == 2 ? src[1] : 255);
     }
   }
-  auto repeat = [](osg::Texture::WrapMode m) {
-    return m == osg::Texture::REPEAT || m == osg::Texture::MIRROR;
-  };
-  out->repeat_s = repeat(tex.getWrap(osg::Texture::WRAP_S));
-  out->repeat_t = repeat(tex.getWrap(osg::Texture::WRAP_T));
+  out->repeat_s = repeats(tex.getWrap(osg::Texture::WRAP_S));
+  out->repeat_t = repeats(tex.getWrap(osg::Texture::WRAP_T));
   return true;
 }
 
@@ -217,7 +230,9 @@ class SceneWriter {
   std::map<std::tuple<const osg::Node*, const osg::Material*, const osg::Texture2D*>, MeshInfo>
       geometry_index_;
   Box3d scene_box_;  // of whole meshes: clustering leaves the default near plane as it was
-  std::map<const osg::Image*, int32_t> texture_index_;
+  // Per image and wrap modes: two textures sharing an image may wrap
+  // differently, and each texture file holds its wrap modes.
+  std::map<std::tuple<const osg::Image*, bool, bool>, int32_t> texture_index_;
   PreprocessStats stats_;
   Clock::time_point start_ = Clock::now(), last_progress_ = Clock::now();
 };
@@ -236,6 +251,23 @@ uint32_t SceneWriter::addNode(NodeKind kind, uint32_t parent, uint32_t object,
 void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedState state,
                            uint32_t parent) {
   state = applyStateSet(state, node->getStateSet());
+  if (auto* bb = dynamic_cast<const osg::Billboard*>(node)) {
+    // Each drawable at its own position. OSG turns it to face the eye every
+    // frame; dmmr draws it as modelled (that turn depends on the view, and
+    // objects here have one transform), so billboards are counted and warned.
+    ++stats_.billboards;
+    uint32_t self = addNode(NodeKind::Group, parent, kNone, node->getName());
+    for (unsigned i = 0; i < bb->getNumDrawables(); ++i) {
+      const osg::Drawable* d = bb->getDrawable(i);
+      const osg::Vec3& p = bb->getPosition(i);
+      if (const osg::Geometry* g = d->asGeometry())
+        addObject(d, {g}, world * Mat4d::translate({p.x(), p.y(), p.z()}), state, self);
+      else
+        ++stats_.skipped_drawables;
+    }
+    skeleton_[self].end = uint32_t(skeleton_.size());
+    return;
+  }
   if (auto* geode = node->asGeode()) {
     std::vector<const osg::Geometry*> drawables;
     for (unsigned i = 0; i < geode->getNumDrawables(); ++i) {
@@ -383,7 +415,7 @@ const MeshInfo& SceneWriter::meshFor(const osg::Node* key,
     size_t nv = d->getVertexArray() ? d->getVertexArray()->getNumElements() : 0;
     InheritedState s = applyStateSet(state, d->getStateSet());
     attrs[0] = attrs[0] || perVertex(d->getNormalArray(), nv);
-    attrs[1] = attrs[1] || perVertex(d->getColorArray(), nv);
+    attrs[1] = attrs[1] || perVertex(d->getColorArray(), nv) || colorsPerPrimitiveSet(*d);
     attrs[2] = attrs[2] || (s.texture && perVertex(d->getTexCoordArray(0), nv));
   }
   GeometryData g;
@@ -472,7 +504,18 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   std::vector<uint32_t> tris;
   osg::TriangleIndexFunctor<TriangleCollector> f;
   f.out = &tris;
-  geom.accept(f);
+  // With colours per primitive set, set by set: set_end[k] is where set k's
+  // triangles end in `tris`.
+  const bool per_set = colorsPerPrimitiveSet(geom);
+  std::vector<size_t> set_end;
+  if (per_set) {
+    for (unsigned k = 0; k < geom.getNumPrimitiveSets(); ++k) {
+      geom.getPrimitiveSet(k)->accept(f);
+      set_end.push_back(tris.size());
+    }
+  } else {
+    geom.accept(f);
+  }
   if (tris.empty()) return;
 
   std::vector<uint8_t> finite(nv);
@@ -487,11 +530,19 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
   std::vector<uint32_t> remap(nv, kNone);
   const osg::Array* normals =
       perVertex(geom.getNormalArray(), nv) ? geom.getNormalArray() : nullptr;
-  const osg::Array* colors = perVertex(geom.getColorArray(), nv) ? geom.getColorArray() : nullptr;
+  const osg::Array* colors =
+      perVertex(geom.getColorArray(), nv) || per_set ? geom.getColorArray() : nullptr;
+  size_t set = 0;                // the primitive set of triangle t (per_set)
+  std::vector<uint32_t> mapped;  // vertices remapped in this set, to forget at the next
   auto* uv = dynamic_cast<const osg::Vec2Array*>(geom.getTexCoordArray(0));
   if (!state.texture || !perVertex(uv, nv)) uv = nullptr;
   uint32_t firstIndex = uint32_t(g->indices.size());
   for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+    if (per_set && t >= set_end[set]) {
+      while (t >= set_end[set]) ++set;
+      for (uint32_t src : mapped) remap[src] = kNone;
+      mapped.clear();
+    }
     uint32_t v[3] = {tris[t], tris[t + 1], tris[t + 2]};
     if (v[0] >= nv || v[1] >= nv || v[2] >= nv) {
       ++stats_.bad_index_triangles;
@@ -514,6 +565,7 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
     for (uint32_t src : v) {
       if (remap[src] == kNone) {
         remap[src] = uint32_t(positions->size() / 3);
+        if (per_set) mapped.push_back(src);
         Vec3d p;
         readVec3(verts, src, &p);
         positions->insert(positions->end(), {p.x, p.y, p.z});
@@ -524,7 +576,7 @@ void SceneWriter::appendDrawable(const osg::Geometry& geom, InheritedState state
         }
         if (attrs[1]) {
           uint8_t c[4] = {255, 255, 255, 255};
-          if (colors) readColor(colors, src, c);
+          if (colors) readColor(colors, per_set ? set : src, c);
           g->colors.insert(g->colors.end(), c, c + 4);
         }
         if (attrs[2]) {
@@ -568,7 +620,9 @@ void SceneWriter::addLevelOfDetail(GeometryData* g) {
 int32_t SceneWriter::textureFor(const osg::Texture2D* tex) {
   const osg::Image* img = tex->getImage();
   if (!img) return -1;
-  if (auto it = texture_index_.find(img); it != texture_index_.end()) return it->second;
+  const auto key = std::make_tuple(img, repeats(tex->getWrap(osg::Texture::WRAP_S)),
+                                   repeats(tex->getWrap(osg::Texture::WRAP_T)));
+  if (auto it = texture_index_.find(key); it != texture_index_.end()) return it->second;
   TextureData t;
   int32_t index = -1;
   if (convertImage(*img, *tex, &t)) {
@@ -580,7 +634,7 @@ int32_t SceneWriter::textureFor(const osg::Texture2D* tex) {
                  "left off\n",
                  img->getFileName().c_str());
   }
-  texture_index_[img] = index;
+  texture_index_[key] = index;
   return index;
 }
 

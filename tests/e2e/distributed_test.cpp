@@ -728,6 +728,29 @@ TEST(Balance, APoolDealtOnDemandKeepsFramesExact) {
       << log;
 }
 
+// More clients than the frame has pixels: the clients left without pixels
+// get empty regions, which the depth pyramid (the default visibility) once
+// refused with an internal check; frames equal the reference's, in every
+// division that can leave a region empty.
+TEST(Balance, MoreClientsThanPixelsStayExact) {
+  SmallScene& s = smallScene();
+  const std::string size = " --no-progress --width 2 --height 1 --scene " + s.scene +
+                           " --walkthrough " + s.path + " --out ";
+  std::string reference = s.dir / "tiny-reference";
+  ASSERT_EQ(test::run(test::tool("dmmr-reference") + size + reference), 0);
+  for (const char* opts :
+       {"", "--regions-per-client 4", "--pool-share 0.5 --pool-parts 6", "--visibility queries"}) {
+    std::string out = s.dir / ("tiny-" + test::slug(opts));
+    int status = 0;
+    std::string log = test::runCapture("timeout 120 " + test::mpirun(4) + " " +
+                                           test::tool("dmmr-render") + size + out + " " + opts,
+                                       &status);
+    ASSERT_EQ(status, 0) << opts << "\n" << log;
+    for (const FrameDiff& d : compareDirectories(reference, out))
+      EXPECT_EQ(d.diff.differing_pixels, 0) << opts << " " << d.name;
+  }
+}
+
 // An exception of a type that is not std::exception escaping a stage (as a
 // third-party library may throw) ends the run with a message, not with
 // std::terminate of the stage's thread.

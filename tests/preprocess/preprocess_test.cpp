@@ -2,15 +2,19 @@
 // the real models beside the checkout.
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <osg/Billboard>
 #include <osg/Geode>
 #include <osg/Geometry>
 #include <osg/Material>
 #include <osg/MatrixTransform>
+#include <osg/Texture2D>
 #include <osgDB/ReadFile>
 #include <osgDB/WriteFile>
 #include <osgUtil/Statistics>
@@ -276,6 +280,98 @@ TEST(PreprocessCli, AReaderCrashNamesTheFileAndTheNextRunCleansUp) {
   EXPECT_EQ(status, 0) << out;
   for (const auto& e : fs::directory_iterator(dir.path()))
     EXPECT_NE(e.path().filename().string().rfind("scene.partial-", 0), 0u) << e.path();
+}
+
+// Textures sharing one image but wrapping differently are separate texture
+// files (each file holds its wrap modes); the same image and wrap modes
+// again reuse the first file.
+TEST(Preprocess, TexturesSharingAnImageKeepTheirOwnWrapModes) {
+  TempDir dir;
+  osg::ref_ptr<osg::Image> image = new osg::Image;
+  image->allocateImage(2, 2, 1, GL_RGBA, GL_UNSIGNED_BYTE);
+  std::memset(image->data(), 200, 16);
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  auto textured = [&](osg::Texture::WrapMode wrap, float x) {
+    auto* g = new osg::Geometry;
+    auto* v = new osg::Vec3Array;
+    for (osg::Vec3 p : {osg::Vec3(x, 0, 0), osg::Vec3(x + 1, 0, 0), osg::Vec3(x, 0, 1)})
+      v->push_back(p);
+    auto* uv = new osg::Vec2Array;
+    for (osg::Vec2 t : {osg::Vec2(0, 0), osg::Vec2(3, 0), osg::Vec2(0, 3)}) uv->push_back(t);
+    g->setVertexArray(v);
+    g->setTexCoordArray(0, uv, osg::Array::BIND_PER_VERTEX);
+    g->addPrimitiveSet(new osg::DrawArrays(GL_TRIANGLES, 0, 3));
+    auto* tex = new osg::Texture2D(image.get());
+    tex->setWrap(osg::Texture::WRAP_S, wrap);
+    tex->setWrap(osg::Texture::WRAP_T, wrap);
+    g->getOrCreateStateSet()->setTextureAttributeAndModes(0, tex);
+    auto* geode = new osg::Geode;
+    geode->addDrawable(g);
+    root->addChild(geode);
+  };
+  textured(osg::Texture::REPEAT, 0);
+  textured(osg::Texture::CLAMP_TO_EDGE, 2);
+  textured(osg::Texture::REPEAT, 4);
+  PreprocessStats st = run({writeModel(dir, root.get(), "wrap.osgb")}, dir / "scene");
+  EXPECT_EQ(st.textures, 2u);
+  Scene s = loadScene(dir / "scene");
+  ASSERT_EQ(s.manifest.textures, 2u);
+  TextureData a = loadTexture(s, 0), b = loadTexture(s, 1);
+  EXPECT_TRUE(a.repeat_s && a.repeat_t);
+  EXPECT_FALSE(b.repeat_s || b.repeat_t);
+  EXPECT_EQ(a.rgba, b.rgba);
+}
+
+// An osg::Billboard draws each drawable at its own position (as modelled:
+// the turn to the eye depends on the view); counted for the warning.
+TEST(Preprocess, BillboardDrawablesSitAtTheirPositions) {
+  TempDir dir;
+  osg::ref_ptr<osg::Billboard> bb = new osg::Billboard;
+  osg::ref_ptr<osg::Geode> c = cube();
+  bb->addDrawable(c->getDrawable(0), osg::Vec3(100, 0, 0));
+  bb->addDrawable(c->getDrawable(0), osg::Vec3(0, 50, 0));  // the same drawable again
+  PreprocessStats st = run({writeModel(dir, bb.get(), "bb.osgb")}, dir / "scene");
+  EXPECT_EQ(st.billboards, 1u);
+  EXPECT_EQ(st.objects, 2u);
+  EXPECT_EQ(st.geometries, 1u) << "one drawable at two positions is one geometry";
+  Scene s = loadScene(dir / "scene");
+  ASSERT_EQ(s.objects.size(), 2u);
+  EXPECT_NEAR(s.objects[0].box.center().x, 100, 1e-9);
+  EXPECT_NEAR(s.objects[1].box.center().y, 50, 1e-9);
+}
+
+// Colours bound per primitive set colour each set's triangles; a vertex two
+// sets share is stored once for each, in its set's colour.
+TEST(Preprocess, ColoursPerPrimitiveSetColourTheirSetsTriangles) {
+  TempDir dir;
+  auto* g = new osg::Geometry;
+  auto* v = new osg::Vec3Array;
+  for (osg::Vec3 p :
+       {osg::Vec3(0, 0, 0), osg::Vec3(1, 0, 0), osg::Vec3(0, 0, 1), osg::Vec3(1, 0, 1)})
+    v->push_back(p);
+  g->setVertexArray(v);
+  auto* a = new osg::DrawElementsUInt(GL_TRIANGLES);
+  for (unsigned i : {0u, 1u, 2u}) a->push_back(i);
+  auto* b = new osg::DrawElementsUInt(GL_TRIANGLES);
+  for (unsigned i : {1u, 3u, 2u}) b->push_back(i);
+  g->addPrimitiveSet(a);
+  g->addPrimitiveSet(b);
+  auto* colours = new osg::Vec4Array;
+  colours->push_back(osg::Vec4(1, 0, 0, 1));
+  colours->push_back(osg::Vec4(0, 1, 0, 1));
+  g->setColorArray(colours, osg::Array::BIND_PER_PRIMITIVE_SET);
+  osg::ref_ptr<osg::Geode> geode = new osg::Geode;
+  geode->addDrawable(g);
+  run({writeModel(dir, geode.get(), "ps.osgb")}, dir / "scene");
+  GeometryData geo = loadGeometry(loadScene(dir / "scene"), 0);
+  ASSERT_EQ(geo.indices.size(), 6u);
+  ASSERT_EQ(geo.vertexCount(), 6u) << "vertices 1 and 2 once for each set";
+  ASSERT_EQ(geo.colors.size(), 4 * geo.vertexCount());
+  for (size_t t = 0; t < 6; ++t) {
+    const uint8_t* c = &geo.colors[4 * size_t(geo.indices[t])];
+    EXPECT_EQ(c[0], t < 3 ? 255 : 0) << t;
+    EXPECT_EQ(c[1], t < 3 ? 0 : 255) << t;
+  }
 }
 
 TEST(Preprocess, TrianglesWithCoincidingCornersAreDroppedAndCounted) {
