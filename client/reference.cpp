@@ -1,5 +1,7 @@
 #include "reference.h"
 
+#include "run_settings.h"
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -76,6 +78,10 @@ void runReference(const ReferenceOptions& opts) {
   header += opts.exact_visible ? ",exact_visible_objects,exact_visible_triangles,floor_ms\n" : "\n";
   std::string csv = resumeStatsCsv(opts.stats, header, opts.from_frame);
   std::filesystem::create_directories(opts.out);
+  RunSettings settings = baseRunSettings(opts.scene, opts.walkthrough, opts.view);
+  settings.add("renderer", "reference");
+  if (opts.from_frame > 0) checkResume(opts.out, settings, uint32_t(opts.from_frame));
+  writeRunSettings(opts.out, settings);
   // The input checked, before the caches start to grow (memory_policy.h).
   preTouchHeap(preTouchBytes(opts.pre_touch_mib, scene.manifest.geometry_bytes));
 

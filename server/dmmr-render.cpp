@@ -12,6 +12,7 @@
 #include "error.h"
 #include "memory_policy.h"
 #include "protocol.h"
+#include "run_settings.h"
 #include "server.h"
 
 int main(int argc, char** argv) {
@@ -314,6 +315,25 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dmmr-render: --tile %s: expected WxH with W, H from 1 to 16384\n",
                    tile.c_str());
     return usage_failure;
+  }
+
+  // What makes the frames what they are, for --from-frame's check.
+  s.settings = dmmr::baseRunSettings(s.scene, s.walkthrough, s.view);
+  s.settings.add("renderer", renderer);
+  if (c.raytrace) {
+    s.settings.add("ray-stride", std::to_string(s.ray_stride));
+    s.settings.add("shadows", c.ray.shadows ? "on" : "off");
+    s.settings.add("light", std::to_string(c.ray.light.x) + "," + std::to_string(c.ray.light.y) +
+                                "," + std::to_string(c.ray.light.z));
+    s.settings.add("reflections", c.ray.reflections ? "on" : "off");
+    s.settings.add("ray-depth", std::to_string(c.ray.max_depth));
+    std::string marked;
+    for (const auto& m : c.mirror) marked += "mirror:" + m + " ";
+    for (const auto& g : c.glass) marked += "glass:" + g + " ";
+    s.settings.add("effects", marked);
+  } else {
+    s.settings.add("query-threshold", std::to_string(c.visibility.query_threshold));
+    s.settings.add("occluder-lod", c.visibility.occluder_lod ? "on" : "off");
   }
 
   // Before MPI and any thread: it may restart the program (huge pages).

@@ -649,6 +649,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
       throw Error("--from-frame " + std::to_string(opts.from_frame) + " is not a frame of " +
                   opts.walkthrough + " (" + std::to_string(path.points.size()) + " frames)");
     if (!opts.out.empty()) std::filesystem::create_directories(opts.out);
+    if (!opts.out.empty() && !opts.serve) {
+      if (opts.from_frame > 0) checkResume(opts.out, opts.settings, opts.from_frame);
+      writeRunSettings(opts.out, opts.settings);
+    }
     // Created here, before the clients are told to go: a stats file that
     // cannot be written stops the run before any work is done.
     csv = std::make_unique<StatsCsvAppender>(

@@ -8,6 +8,7 @@
 #include "camera.h"
 #include "mpi_comm.h"
 #include "plan.h"
+#include "run_settings.h"
 #include "serve.h"
 #include "tiles.h"
 
@@ -16,6 +17,9 @@ namespace dmmr {
 struct ServerOptions {
   std::string scene;
   std::string walkthrough;
+  // Written beside the frames; a run with from_frame > 0 checks them against
+  // the earlier frames' (run_settings.h).
+  RunSettings settings;
   std::string out;    // frames: frame_NNNNNN.png
   std::string stats;  // optional per-frame CSV
   // Optional CSV, one row per client and frame (frustum division): what the

@@ -391,11 +391,44 @@ TEST(DistributedErrors, AnInterruptedRunResumesFromAFrame) {
   EXPECT_NE(log.find("--from-frame 4 is not a frame of"), std::string::npos) << log;
 }
 
+// A resumed run must add frames made as the earlier ones were: another
+// image size or field of view, a gap before --from-frame, or no settings
+// file beside the frames is refused, naming what differs.
+TEST(DistributedErrors, AResumeWithOtherSettingsOrAGapIsRefused) {
+  SmallScene& s = smallScene();
+  std::string out = s.dir / "resume-checked";
+  s.render(2, out);
+  fs::remove(out + "/frame_000002.png");
+  fs::remove(out + "/frame_000003.png");
+  int status = 0;
+  std::string log =
+      test::runCapture("timeout 120 " + test::mpirun(3) + " " + test::tool("dmmr-render") +
+                           " --no-progress --width 100 --height 120 --fovy 60 --scene " + s.scene +
+                           " --walkthrough " + s.path + " --out " + out + " --from-frame 2",
+                       &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("width was 160, now 100"), std::string::npos) << log;
+  EXPECT_NE(log.find("fovy was 45, now 60"), std::string::npos) << log;
+  fs::remove(out + "/frame_000001.png");
+  log = s.render(2, out, "--from-frame 2", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("frame_000001.png: missing"), std::string::npos) << log;
+  log = s.render(2, out, "--from-frame 1", &status);
+  ASSERT_EQ(status, 0) << log;
+  for (const FrameDiff& d : compareDirectories(s.reference, out))
+    EXPECT_EQ(d.diff.differing_pixels, 0) << d.name;
+  fs::remove(out + "/run-settings.txt");
+  log = s.render(2, out, "--from-frame 3", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(log.find("run-settings.txt: missing"), std::string::npos) << log;
+}
+
 TEST(Reference, AnInterruptedRunResumesFromAFrame) {
   SmallScene& s = smallScene();
   std::string out = s.dir / "reference-resumed";
   fs::create_directories(out);
   fs::copy_file(s.reference + "/frame_000000.png", out + "/frame_000000.png");
+  fs::copy_file(s.reference + "/run-settings.txt", out + "/run-settings.txt");
   int status = 0;
   std::string log = test::runCapture(
       test::tool("dmmr-reference") + " --no-progress --width 160 --height 120 --scene " + s.scene +
