@@ -44,11 +44,16 @@ inline void addCacheOptions(CLI::App& app, CacheOptions& c) {
          "host RAM bytes for geometry files, per client (e.g. 4G; default unlimited)");
   app.add_option("--ram-dir", c.ram_dir,
                  "keep the RAM level as files in this directory (a RAM disk, e.g. /dev/shm)");
-  app.add_option("--eviction", c.eviction,
-                 "cache eviction: frame-lru (LRU, but MRU within a frame that overflows the "
-                 "budget) or lru")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, Eviction>{
-          {"frame-lru", Eviction::FrameLru}, {"lru", Eviction::Lru}}));
+  // Parsed as a name and checked by name, so that help and errors show the
+  // names (the enum's one-byte values would print as control characters).
+  app.add_option_function<std::string>(
+         "--eviction",
+         [&c](const std::string& v) {
+           c.eviction = v == "lru" ? Eviction::Lru : Eviction::FrameLru;
+         },
+         "cache eviction: frame-lru (LRU, but MRU within a frame that overflows the budget) or "
+         "lru (default frame-lru)")
+      ->check(CLI::IsMember({"frame-lru", "lru"}));
   app.add_flag("!--no-prefetch", c.prefetch,
                "clients load geometry only when a stage draws it (for measuring prefetch)");
 }

@@ -3,6 +3,7 @@
 // thresholds, 1 when any does not, 2 on usage or I/O errors.
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -42,8 +43,13 @@ CompareThresholds thresholdsFrom(const Options& o) {
 }
 
 std::vector<FrameDiff> compareInputs(const Options& o) {
+  for (const std::string& p : {o.a, o.b})
+    if (!fs::exists(p)) throw dmmr::Error(dmmr::fileError(p, "no such file or directory"));
   bool dir_a = fs::is_directory(o.a), dir_b = fs::is_directory(o.b);
-  if (dir_a != dir_b) throw dmmr::Error("A and B must both be PNG files or both directories");
+  if (dir_a != dir_b)
+    throw dmmr::Error("A and B must both be PNG files or both directories (" + o.a + " is " +
+                      (dir_a ? "a directory" : "a file") + ", " + o.b + " is " +
+                      (dir_b ? "a directory" : "a file") + ")");
   if (dir_a) return dmmr::compareDirectories(o.a, o.b);
   return {{fs::path(o.a).filename().string(), dmmr::compareImageFiles(o.a, o.b)}};
 }
@@ -133,7 +139,19 @@ int main(int argc, char** argv) {
       "dmmr-compare"};
   app.add_option("A", o.a, "PNG file or directory of PNG files")->required();
   app.add_option("B", o.b, "PNG file or directory of PNG files (same kind as A)")->required();
-  auto* psnr_opt = app.add_option("--min-psnr", o.min_psnr, "lowest acceptable PSNR (dB)");
+  auto* psnr_opt =
+      app.add_option("--min-psnr", o.min_psnr, "lowest acceptable PSNR (dB)")
+          ->check(CLI::Validator(
+              [](std::string& v) {
+                double x = 0;
+                try {
+                  x = std::stod(v);
+                } catch (const std::exception&) {
+                  return std::string("not a number");
+                }
+                return std::isnan(x) ? std::string("not a number (NaN)") : std::string();
+              },
+              "dB", "not NaN"));
   auto* diff_opt = app.add_option("--max-diff-pixels", o.max_diff_pixels,
                                   "most pixels allowed to differ in a frame")
                        ->check(nonNegative());

@@ -21,6 +21,7 @@ std::string number(double v) {
 }
 
 std::string absolute(const std::string& p) {
+  if (p.empty()) return p;  // none (a served run has no walkthrough)
   std::error_code ec;
   const std::filesystem::path abs = std::filesystem::absolute(p).lexically_normal();
   std::filesystem::path a = std::filesystem::weakly_canonical(abs, ec);
@@ -65,13 +66,17 @@ void writeRunSettings(const std::string& dir, const RunSettings& s) {
 }
 
 void checkResume(const std::string& dir, const RunSettings& s, uint32_t from_frame) {
+  const std::string path = dir + "/" + kRunSettingsFile;
+  bool earlier = std::filesystem::exists(path);
+  for (uint32_t f = 0; f < from_frame && !earlier; ++f)
+    earlier = std::filesystem::exists(dir + "/" + frameFileName(f));
+  if (!earlier) return;  // nothing there yet: frames from_frame on alone, mixing nothing
   for (uint32_t f = 0; f < from_frame; ++f)
     if (!std::filesystem::exists(dir + "/" + frameFileName(f)))
       throw Error(fileError(dir + "/" + frameFileName(f),
                             "missing, so --from-frame " + std::to_string(from_frame) +
                                 " would leave a gap: resume from frame " + std::to_string(f) +
                                 " or earlier"));
-  const std::string path = dir + "/" + kRunSettingsFile;
   if (!std::filesystem::exists(path))
     throw Error(fileError(path,
                           "missing: the frames there cannot be checked against this run's "

@@ -34,10 +34,12 @@ RunSettings parseRunSettings(const std::string& text, const std::string& path);
 // `dir`/run-settings.txt, written atomically.
 void writeRunSettings(const std::string& dir, const RunSettings& s);
 
-// Before resuming into `dir` from frame `from_frame` (> 0): frames 0 to
-// from_frame - 1 are there (frameFileName) and the settings file there equals
-// `s`. Throws Error naming the first missing frame, a missing settings file,
-// or each setting that differs (was, now).
+// Before resuming into `dir` from frame `from_frame` (> 0). A directory with
+// neither a settings file nor any of frames 0 to from_frame - 1 takes frames
+// from_frame on alone (a part of a walkthrough rendered by itself). Otherwise
+// frames 0 to from_frame - 1 are there (frameFileName) and the settings file
+// equals `s`. Throws Error naming the first missing frame, a missing
+// settings file, or each setting that differs (was, now).
 void checkResume(const std::string& dir, const RunSettings& s, uint32_t from_frame);
 
 }  // namespace dmmr

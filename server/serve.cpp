@@ -257,19 +257,24 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       hub_.removed(id_);
       return;
     }
-    auto now = Clock::now();
-    recent_.push_back(now);
-    while (!recent_.empty() && now - recent_.front() > std::chrono::seconds(1)) recent_.pop_front();
-    if (int(recent_.size()) > hub_.opts.max_rate) {
-      close(websocket::close_code::policy_error,
-            "too many messages: more than " + std::to_string(hub_.opts.max_rate) + " a second");
-      return;
-    }
     try {
       auto data = buf_.cdata();
       ViewerMessage m = decodeViewerMessage(static_cast<const uint8_t*>(data.data()), data.size());
       buf_.consume(buf_.size());
-      if (m.type == ViewerMessageType::Pose)
+      // Poses and acks are limited apart: a viewer streaming poses at the
+      // limit also acks the frames it gets.
+      const bool pose = m.type == ViewerMessageType::Pose;
+      std::deque<Clock::time_point>& recent = pose ? recent_poses_ : recent_acks_;
+      auto now = Clock::now();
+      recent.push_back(now);
+      while (now - recent.front() > std::chrono::seconds(1)) recent.pop_front();
+      if (int(recent.size()) > hub_.opts.max_rate) {
+        close(websocket::close_code::policy_error, "too many messages: more than " +
+                                                       std::to_string(hub_.opts.max_rate) +
+                                                       (pose ? " poses" : " acks") + " a second");
+        return;
+      }
+      if (pose)
         hub_.onPose(id_, m.pose);
       else
         hub_.onAck(id_, m.ack_frame);
@@ -317,7 +322,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::string hello_;
   bool writing_ = false, closing_ = false;
   std::optional<websocket::close_reason> close_;
-  std::deque<Clock::time_point> recent_;
+  std::deque<Clock::time_point> recent_poses_, recent_acks_;  // the last second's
 };
 
 // One HTTP request: the page, or the upgrade to a viewer's WebSocket; both

@@ -25,7 +25,7 @@ struct ServeOptions {
   std::string address = "127.0.0.1";
   uint16_t port = 0;      // 0: any free port (the URL says which)
   double still_ms = 250;  // no pose for this long: the exact frame follows
-  int max_rate = 240;     // messages a second a viewer may send
+  int max_rate = 240;     // poses a second a viewer may send, and as many acks
   int max_viewers = 8;    // viewers at once; more are refused (HTTP 503)
   int max_rendering = 1;  // a viewer's frames in the render pipeline at once
   // The moving frames are approximate (--ray-stride): a still frame is the

@@ -7,11 +7,11 @@ import shlex
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 from . import analysis, report
 from .runner import Progress, Runner
+from .suite import SuiteError, load_suite
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -72,7 +72,10 @@ def main(argv=None):
     a = ap.parse_args(argv)
 
     suite_path = find_suite(a.suite)
-    suite = tomllib.loads(suite_path.read_text())
+    try:
+        suite = load_suite(suite_path)
+    except SuiteError as e:
+        sys.exit(f"dmmr-bench: {e}")
     if a.scale not in suite.get("scales", {}):
         sys.exit(f"dmmr-bench: suite {a.suite} has no scale {a.scale!r} (has {', '.join(suite.get('scales', {}))})")
     out = Path(a.out or ROOT / "out" / "bench" / f"{suite_path.stem}-{a.scale}").resolve()
@@ -86,7 +89,7 @@ def main(argv=None):
     if repeats < 1:
         sys.exit(f"dmmr-bench: --repeats {repeats}: at least 1")
     runner = Runner(suite, a.scale, out, bin_dir, backend=a.backend, resume=a.resume or a.report_only,
-                    render_options=a.render_option, cost=cost, repeats=repeats)
+                    render_options=a.render_option, cost=cost, repeats=repeats, report_only=a.report_only)
     cfg = runner.cfg
     scenes = runner.scenes()
     confs = runner.configurations()

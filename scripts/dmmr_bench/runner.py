@@ -86,9 +86,11 @@ def window_lines(lines, start, count):
 
 class Runner:
     def __init__(self, suite, scale, out, bin_dir, backend="osmesa", resume=False, render_options=(),
-                 cost="wall", repeats=1):
+                 cost="wall", repeats=1, report_only=False):
         self.suite, self.scale, self.out, self.bin = suite, scale, Path(out), Path(bin_dir)
         self.backend, self.resume = backend, resume
+        # --report-only: reuse what is there; anything missing is an error, never a run
+        self.report_only = report_only
         # extra dmmr-render options of the plain runs (not the threshold sweep), e.g. --stages fused
         self.render_options = [str(o) for o in render_options]
         self.cfg = suite["scales"][scale]
@@ -164,12 +166,20 @@ class Runner:
         return per_scene * len(self.scenes())
 
     # --- scenes -----------------------------------------------------------
+    def missing(self, what):
+        """With --report-only, what would be run is an error instead."""
+        if self.report_only:
+            raise RuntimeError(f"--report-only: {what} is missing from {self.out}; run without --report-only "
+                               "(add --resume to reuse what is there)")
+
     def make_scene(self, sc, progress):
         d = self.out / "scenes"
         d.mkdir(parents=True, exist_ok=True)
         name = sc["name"]
         osgb, path, scene_dir = d / f"{name}.osgb", d / f"{name}.path", d / f"{name}.scene"
         frames, path_frames = self.frames(sc), self.path_frames(sc)
+        if not (osgb.exists() and path.exists() and (scene_dir / "manifest.json").exists()):
+            self.missing(f"scene {name}")
         if osgb.exists() and path.exists() and len(self.path_lines(path)) == path_frames:
             progress.step(f"{name}: scene reused ({osgb})")
         else:
@@ -322,6 +332,7 @@ class Runner:
         if self.resume and ref_csv.exists() and self.csv_rows(ref_csv) == want:
             progress.step(f"{name}: dmmr-reference reused")
         else:
+            self.missing(f"{name}'s reference run")
             # a new reference (or one of another stride): every run is compared with it again
             self._fresh(ref_dir, ref_csv, *(rd / f"{rl}.cmp.csv" for label, _, _ in self.configurations()
                                             for rl in self.run_labels(label)))
@@ -335,6 +346,7 @@ class Runner:
         elif self.resume and osg_csv.exists():
             progress.step(f"{name}: {OSG_TOOL} reused")
         else:
+            self.missing(f"{name}'s {OSG_LABEL} run")
             self._fresh(osg_dir, osg_csv)
             dt = run_cmd([self.bin / OSG_TOOL, *self.osg_opts(osgb, path, osg_dir, osg_csv)], self.log, env=self.env)
             self.timings[f"{name}/{OSG_LABEL}"] = dt
@@ -358,6 +370,7 @@ class Runner:
                 self.compare(ref_dir, out_dir, stride, cmp_csv)
                 progress.step(f"{name}: {label} compared with the reference")
             return
+        self.missing(f"{name}'s run {label}")
         self._fresh(out_dir, csv, cmp_csv)
         cmd = [*self.render_mpi, "-np", n + 1, self.bin / "dmmr-render",
                *self.common_opts(scene_dir, path, out_dir, csv),

@@ -62,4 +62,15 @@ TEST(CompareCli, MissingInputIsAUsageError) {
   std::string log;
   EXPECT_EQ(compare(d / "nope " + d / "nope2", &log), 2);
   EXPECT_NE(log.find("dmmr-compare:"), std::string::npos) << log;
+  // A directory against a missing path names the missing one.
+  std::filesystem::create_directories(d / "frames");
+  EXPECT_EQ(compare(d / "frames " + d / "gone", &log), 2);
+  EXPECT_NE(log.find(d / "gone" + ": no such file or directory"), std::string::npos) << log;
+}
+
+TEST(CompareCli, ANanThresholdIsAUsageError) {
+  TempDir d;
+  std::string log;
+  EXPECT_EQ(compare(d / "a " + d / "b --min-psnr nan", &log), 2);
+  EXPECT_NE(log.find("NaN"), std::string::npos) << log;
 }

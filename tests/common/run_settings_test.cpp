@@ -31,6 +31,8 @@ TEST(RunSettings, FormatsAndParsesBack) {
   EXPECT_EQ(parseRunSettings(formatRunSettings(s), "f"), s);
   EXPECT_EQ(s.values[2], (std::pair<std::string, std::string>{"width", "256"}));
   EXPECT_TRUE(std::filesystem::path(s.values[0].second).is_absolute());
+  // A served run has no walkthrough: none, not an error.
+  EXPECT_EQ(baseRunSettings("scene", "", ViewOptions{}).values[1].second, "");
 }
 
 TEST(RunSettings, ParseRejectsAnotherFileAndBadLines) {
@@ -59,4 +61,13 @@ TEST(RunSettings, ResumeNeedsEveryEarlierFrameAndTheSameSettings) {
   std::filesystem::remove(dir / kRunSettingsFile);
   e = test::errorOf([&] { checkResume(dir.path(), s, 1); });
   EXPECT_NE(e.find("run-settings.txt: missing"), std::string::npos) << e;
+}
+
+// Frames K on into a directory holding nothing of the run: a part of a
+// walkthrough rendered by itself, which mixes nothing.
+TEST(RunSettings, FramesFromKIntoAnEmptyDirectoryAreNoResume) {
+  TempDir dir;
+  EXPECT_EQ(test::errorOf([&] { checkResume(dir.path(), sample(), 16); }), "");
+  touch(dir / frameFileName(20));  // a later frame is not an earlier one
+  EXPECT_EQ(test::errorOf([&] { checkResume(dir.path(), sample(), 16); }), "");
 }

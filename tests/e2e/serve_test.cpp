@@ -347,6 +347,14 @@ TEST(Serve, MalformedOversizedAndTooFastViewersAreCutOffWhileTheRunGoesOn) {
   ASSERT_EQ(r.kind, Kind::Closed);
   EXPECT_EQ(r.close_code, 1009);
 
+  // Poses and acks count apart: 25 of each in a second, each under the
+  // limit of 30, keep the viewer (it was cut off when they counted together).
+  ViewerClient busy(s.url);
+  for (int i = 0; i < 25; ++i) {
+    busy.sendPose(poseAt(pts[size_t(i) % pts.size()], uint32_t(i + 1)));
+    busy.sendAck(uint32_t(i));
+  }
+
   ViewerClient fast(s.url);
   for (int i = 0; i < 40; ++i) fast.sendAck(uint32_t(i));
   r = fast.receive(10);
@@ -357,6 +365,10 @@ TEST(Serve, MalformedOversizedAndTooFastViewersAreCutOffWhileTheRunGoesOn) {
   ViewerClient text(s.url);
   text.sendBytes({'h', 'i'}, /*binary=*/false);
   EXPECT_EQ(text.receive(10).kind, Kind::Closed);
+
+  // The busy viewer is still served: a frame comes, not a close.
+  r = frameWithin(busy, 30);
+  EXPECT_EQ(r.kind, Kind::Frame) << r.close_reason << s.log();
 
   // The good viewer is served all along.
   good.sendPose(poseAt(pts[2], 1));
