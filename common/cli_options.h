@@ -6,6 +6,10 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
+#include <map>
+#include <memory>
+#include <sstream>
 #include <string>
 
 #include "camera.h"
@@ -117,8 +121,75 @@ inline void addTriangleCullOption(CLI::App& app, int* mode) {
 // --config FILE: a run config (TOML or INI) with the options' long names as
 // keys; the command line overrides it. Unknown keys are errors, not
 // silently ignored settings.
+// CLI11's TOML/INI reader, with the checks it leaves out, each a
+// CLI::ConfigError naming the line (exitParse adds the file): a string
+// without its closing quote (CLI11 took the quote into the value), a
+// [table] (run configs are flat), a key set twice, a line without NAME =
+// VALUE, and a flag given anything but true or false (CLI11 took any word).
+// Bare INI words stay values, as before.
+class StrictConfig : public CLI::ConfigTOML {
+ public:
+  explicit StrictConfig(const CLI::App* app) : app_(app) {}
+  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
+    std::string text((std::istreambuf_iterator<char>(input)), std::istreambuf_iterator<char>());
+    check(text);
+    std::istringstream again(text);
+    return CLI::ConfigTOML::from_config(again);
+  }
+
+ private:
+  [[noreturn]] static void fail(long line, const std::string& what) {
+    throw CLI::ConfigError("line " + std::to_string(line) + ": " + what);
+  }
+  // The end of a quoted string starting at s[0], or npos.
+  static size_t closingQuote(const std::string& s) {
+    const char q = s[0];
+    for (size_t i = 1; i < s.size(); ++i) {
+      if (q == '"' && s[i] == '\\') {
+        ++i;
+        continue;
+      }
+      if (s[i] == q) return i;
+    }
+    return std::string::npos;
+  }
+  void check(const std::string& text) const {
+    std::istringstream in(text);
+    std::map<std::string, long> seen;
+    std::string raw;
+    for (long n = 1; std::getline(in, raw); ++n) {
+      const std::string line = CLI::detail::trim_copy(raw);
+      if (line.empty() || line[0] == '#' || line[0] == ';') continue;
+      if (line[0] == '[')
+        fail(n, "tables (" + line +
+                    ") are not run config keys: set the options' long names "
+                    "at the top level");
+      size_t eq = line.find('=');
+      if (eq == std::string::npos) fail(n, "expected NAME = VALUE");
+      std::string key = CLI::detail::trim_copy(line.substr(0, eq));
+      std::string value = CLI::detail::trim_copy(line.substr(eq + 1));
+      if (key.empty()) fail(n, "expected NAME = VALUE");
+      if (auto [it, fresh] = seen.emplace(key, n); !fresh)
+        fail(n, key + " set again (first on line " + std::to_string(it->second) + ")");
+      if (!value.empty() && (value[0] == '"' || value[0] == '\'')) {
+        size_t end = closingQuote(value);
+        if (end == std::string::npos) fail(n, key + ": a string without its closing quote");
+        std::string rest = CLI::detail::trim_copy(value.substr(end + 1));
+        if (!rest.empty() && rest[0] != '#') fail(n, key + ": '" + rest + "' after the string");
+      } else if (!value.empty() && value[0] == '[' && value.back() != ']') {
+        fail(n, key + ": an array without its closing ]");
+      }
+      const CLI::Option* o = app_->get_option_no_throw("--" + key);
+      if (o && o->get_expected_max() == 0 && value != "true" && value != "false")
+        fail(n, key + ": a switch takes true or false, not " + value);
+    }
+  }
+  const CLI::App* app_;
+};
+
 inline void addConfigOption(CLI::App& app) {
   app.set_config("--config", "", "run config file (TOML or INI: option names without --)");
+  app.config_formatter(std::make_shared<StrictConfig>(&app));
   app.allow_config_extras(CLI::config_extras_mode::error);
 }
 

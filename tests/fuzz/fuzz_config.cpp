@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <sstream>
 #include <string>
 
@@ -19,6 +20,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   dmmr::addRunOptions(app, paths, view);
   dmmr::addCacheOptions(app, cache);
   app.allow_config_extras(CLI::config_extras_mode::error);
+  app.config_formatter(std::make_shared<dmmr::StrictConfig>(&app));  // as addConfigOption
   std::istringstream in(std::string(reinterpret_cast<const char*>(data), size));
   try {
     app.parse_from_stream(in);
