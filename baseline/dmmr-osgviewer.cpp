@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
   app.add_option("--width", o.view.width, "image width")->check(CLI::Range(1, 16384));
   app.add_option("--height", o.view.height, "image height")->check(CLI::Range(1, 16384));
   app.add_option("--fovy", o.view.fovy_deg, "vertical field of view, degrees")
-      ->check(CLI::Range(1.0, 179.0));
+      ->check(dmmr::finiteRange(1.0, 179.0));
   app.add_option("--near", o.view.near,
                  "nearest near plane (default: model diagonal * 1e-5, as dmmr; OSG computes "
                  "near and far from what it draws and never goes closer than this)")

@@ -16,6 +16,27 @@
 
 namespace dmmr {
 
+// CLI::Range(lo, hi) for a double that also refuses NaN (which compares
+// false with both bounds, so CLI::Range lets it through).
+inline CLI::Validator finiteRange(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& v) -> std::string {
+        double x = 0;
+        try {
+          size_t used = 0;
+          x = std::stod(v, &used);
+          if (used != v.size()) return "'" + v + "' is not a number";
+        } catch (const std::exception&) {
+          return "'" + v + "' is not a number";
+        }
+        if (!(x >= lo && x <= hi))
+          return "Value " + v + " not in range " + CLI::detail::to_string(lo) + " to " +
+                 CLI::detail::to_string(hi);
+        return {};
+      },
+      "FLOAT in [" + CLI::detail::to_string(lo) + " - " + CLI::detail::to_string(hi) + "]");
+}
+
 struct RunPaths {
   std::string scene, walkthrough, out, stats;
 };
@@ -34,7 +55,7 @@ inline void addRunOptions(CLI::App& app, RunPaths& paths, ViewOptions& view,
   app.add_option("--width", view.width, "image width")->check(CLI::Range(1, 16384));
   app.add_option("--height", view.height, "image height")->check(CLI::Range(1, 16384));
   app.add_option("--fovy", view.fovy_deg, "vertical field of view, degrees")
-      ->check(CLI::Range(1.0, 179.0));
+      ->check(finiteRange(1.0, 179.0));
   app.add_option("--near", view.near, "near plane distance (default: scene diagonal * 1e-5)")
       ->check(CLI::PositiveNumber);
 }

@@ -70,6 +70,11 @@ int main(int argc, char** argv) {
                    "dmmr-preprocess: warning: skipped %llu subtrees under ABSOLUTE_RF transforms "
                    "(fixed to the camera, like a HUD: not part of the model)\n",
                    (unsigned long long)s.camera_fixed_subtrees);
+    if (s.unloaded_lod_files)
+      std::fprintf(stderr,
+                   "dmmr-preprocess: warning: %llu PagedLOD levels in files were not read (only "
+                   "the levels loaded with the model are taken)\n",
+                   (unsigned long long)s.unloaded_lod_files);
     if (s.billboards)
       std::fprintf(stderr,
                    "dmmr-preprocess: warning: %llu billboards are drawn as modelled at their "

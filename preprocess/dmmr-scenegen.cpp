@@ -50,8 +50,10 @@ const CLI::Validator kUnsigned(
 void addOutputOptions(CLI::App* cmd, Options& o) {
   cmd->add_option("-o,--output", o.output, "output scene, e.g. scene.osgb")->required();
   cmd->add_option("--walkthrough", o.walkthrough, "camera path to write (default: OUT.path)");
-  cmd->add_option("--frames", o.frames, "control points in the camera path")
-      ->check(kUnsigned)
+  // Upper bounds far above any scene this tool is for, so that a mistyped
+  // count is an error, not hours of allocation.
+  cmd->add_option("--frames", o.frames, "control points in the camera path (at most 10^6)")
+      ->check(CLI::Range(1u, 1000000u))
       ->capture_default_str();
   cmd->add_option("--path", o.path,
                   "camera path kind (default: fly, orbit for one copy of a model; around: a "
@@ -61,11 +63,12 @@ void addOutputOptions(CLI::App* cmd, Options& o) {
 
 void addGeneratorOptions(CLI::App* cmd, Options& o) {
   cmd->add_option("--seed", o.seed, "random seed")->check(kUnsigned)->capture_default_str();
-  cmd->add_option("--triangles", o.triangles, "target triangle count")
+  cmd->add_option("--triangles", o.triangles, "target triangle count (at most 2*10^9)")
       ->check(kUnsigned)
       ->capture_default_str();
-  cmd->add_option("--geodes", o.geodes, "target geode count (default: 20000 plant, 1000 monument)")
-      ->check(kUnsigned);
+  cmd->add_option("--geodes", o.geodes,
+                  "target geode count (default: 20000 plant, 1000 monument; at most 10^7)")
+      ->check(CLI::Range(1u, 10000000u));
 }
 
 osg::ref_ptr<osg::Node> generate(const std::string& kind, const Options& o) {
@@ -236,11 +239,13 @@ int main(int argc, char** argv) {
     addOutputOptions(cmd, o);
     addGeneratorOptions(cmd, o);
   }
-  rep->add_option("--copies", o.copies, "number of copies")->required();
+  rep->add_option("--copies", o.copies, "number of copies (at most 10^6)")
+      ->required()
+      ->check(CLI::Range(1u, 1000000u));
   for (CLI::App* cmd : {plant, monument})
     cmd->add_option("--parts", o.parts,
-                    "write N files of unique geometry, OUT-000.EXT ..., one at a time")
-        ->check(kUnsigned);
+                    "write N files of unique geometry, OUT-000.EXT ..., one at a time (1 to 10^5)")
+        ->check(CLI::Range(1u, 100000u));
   rep->add_option("--spacing", o.spacing, "grid spacing in metres (<= 0: automatic)");
   rep->add_option("--input", o.input, "model to replicate (any format OSG reads)");
   rep->add_option("--subdivide", o.subdivide,

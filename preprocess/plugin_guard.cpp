@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <osgDB/Registry>
 #include <set>
 
@@ -79,6 +80,7 @@ class PluginGuard::Callback : public osgDB::ReadFileCallback {
     return refuse(f);
   }
   std::atomic<uint64_t> refused{0};
+  const std::string* root = nullptr;  // the FindCallback's (empty: no confinement)
 
  private:
   RR refuse(const std::string& f) {
@@ -87,7 +89,11 @@ class PluginGuard::Callback : public osgDB::ReadFileCallback {
   }
   bool allow(const std::string& f, ReadKind kind) {
     std::string why;
-    if (allowedReference(f, kind, &why)) return true;
+    // A relative name is looked for through findDataFile (FindCallback
+    // confines what it finds); an absolute one is opened as it is.
+    bool inside = root == nullptr || root->empty() || !std::filesystem::path(f).is_absolute() ||
+                  insideRoot(*root, f, &why);
+    if (inside && allowedReference(f, kind, &why)) return true;
     ++refused;
     std::fprintf(stderr, "dmmr-preprocess: warning: refused to read '%s': %s\n", f.c_str(),
                  why.c_str());
@@ -95,18 +101,65 @@ class PluginGuard::Callback : public osgDB::ReadFileCallback {
   }
 };
 
-PluginGuard::PluginGuard() : callback_(new Callback) {
+bool insideRoot(const std::string& root, const std::string& path, std::string* why) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::canonical(path, ec);
+  if (ec) {
+    *why = "cannot be resolved";
+    return false;
+  }
+  auto rel = p.lexically_relative(root);
+  if (rel.empty() || *rel.begin() == "..") {
+    *why = "outside the model's directory " + root;
+    return false;
+  }
+  if (!fs::is_regular_file(p, ec)) {
+    *why = "not a regular file";
+    return false;
+  }
+  return true;
+}
+
+class PluginGuard::FindCallback : public osgDB::FindFileCallback {
+ public:
+  std::string findDataFile(const std::string& f, const osgDB::Options* o,
+                           osgDB::CaseSensitivity cs) override {
+    std::string found = osgDB::Registry::instance()->findDataFileImplementation(f, o, cs);
+    if (found.empty() || root.empty()) return found;
+    std::string why;
+    if (insideRoot(root, found, &why)) return found;
+    ++refused;
+    std::fprintf(stderr, "dmmr-preprocess: warning: refused to read '%s' (found as %s): %s\n",
+                 f.c_str(), found.c_str(), why.c_str());
+    return "";
+  }
+  std::string root;  // canonical; empty: no confinement
+  std::atomic<uint64_t> refused{0};
+};
+
+PluginGuard::PluginGuard() : callback_(new Callback), find_(new FindCallback) {
+  callback_->root = &find_->root;
   osgDB::Registry* r = osgDB::Registry::instance();
   previous_ = r->getReadFileCallback();
   r->setReadFileCallback(callback_.get());
+  previous_find_ = r->getFindFileCallback();
+  r->setFindFileCallback(find_.get());
 }
 
 PluginGuard::~PluginGuard() {
   osgDB::Registry::instance()->setReadFileCallback(previous_.get());
+  osgDB::Registry::instance()->setFindFileCallback(previous_find_.get());
+}
+
+void PluginGuard::confineTo(const std::string& model) {
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::canonical(model, ec).parent_path();
+  find_->root = ec ? std::string() : dir.string();
 }
 
 uint64_t PluginGuard::refused() const {
-  return callback_->refused;
+  return callback_->refused + find_->refused;
 }
 
 }  // namespace dmmr

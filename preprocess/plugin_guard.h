@@ -33,18 +33,34 @@ bool allowedReference(const std::string& filename, ReadKind kind, std::string* w
 enum class ModelReader { None, Osg, Assimp, Ply };
 ModelReader modelReaderFor(const std::string& filename);
 
+// True when `path` (found by OSG: absolute, or relative to the working
+// directory) is a regular file in `root` (a canonical directory) or below,
+// symbolic links resolved; otherwise false with *why. Looks at the disk.
+bool insideRoot(const std::string& root, const std::string& path, std::string* why);
+
 class PluginGuard {
  public:
-  PluginGuard();   // installs the registry's read callback
-  ~PluginGuard();  // restores the one before
+  PluginGuard();   // installs the registry's read and find-file callbacks
+  ~PluginGuard();  // restores the ones before
   PluginGuard(const PluginGuard&) = delete;
   PluginGuard& operator=(const PluginGuard&) = delete;
   uint64_t refused() const;  // reads refused so far
+  // From now on, every file OSG looks for (findDataFile: the model, an OBJ's
+  // mtllib, textures, a ProxyNode's model) must be a regular file in the
+  // directory of `model` or below; anything else is refused with a warning
+  // naming it, as if it were missing (so OSG's search of the working
+  // directory and OSG_FILE_PATH finds nothing outside either). A FIFO or a
+  // device (an OBJ naming /dev/zero as its mtllib hung the read) is refused
+  // too.
+  void confineTo(const std::string& model);
 
  private:
   class Callback;
+  class FindCallback;
   osg::ref_ptr<Callback> callback_;
+  osg::ref_ptr<FindCallback> find_;
   osg::ref_ptr<osgDB::ReadFileCallback> previous_;
+  osg::ref_ptr<osgDB::FindFileCallback> previous_find_;
 };
 
 }  // namespace dmmr

@@ -19,6 +19,7 @@
 #include <osg/Geometry>
 #include <osg/LOD>
 #include <osg/Material>
+#include <osg/PagedLOD>
 #include <osg/Switch>
 #include <osg/Texture2D>
 #include <osg/Transform>
@@ -33,6 +34,7 @@
 #include "atomic_file.h"
 #include "cluster.h"
 #include "error.h"
+#include "obj_check.h"
 #include "plugin_guard.h"
 #include "ply_reader.h"
 
@@ -308,6 +310,11 @@ void SceneWriter::traverse(const osg::Node* node, const Mat4d& world, InheritedS
   uint32_t self = addNode(kind, parent, kNone, node->getName());
   auto* sw = dynamic_cast<const osg::Switch*>(node);
   auto* lod = dynamic_cast<const osg::LOD*>(node);
+  // A PagedLOD's levels in files are paged in by a viewer as the camera
+  // nears; the preprocessor takes the loaded children only, and says so.
+  if (auto* paged = dynamic_cast<const osg::PagedLOD*>(node))
+    for (unsigned i = paged->getNumChildren(); i < paged->getNumFileNames(); ++i)
+      if (!paged->getFileName(i).empty()) ++stats_.unloaded_lod_files;
   // A LOD contributes its most detailed child (the one whose range starts
   // nearest); a Switch its enabled children.
   int lodChild = -1;
@@ -797,6 +804,10 @@ osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
   if (modelReaderFor(path) == ModelReader::Assimp) return readWithAssimp(path);
   if (modelReaderFor(path) == ModelReader::Ply) return readPly(path);
+  if (fs::path(path).extension() == ".obj" || fs::path(path).extension() == ".OBJ") {
+    std::ifstream in(path);
+    checkObjIndices(in, path);
+  }
   osg::ref_ptr<osg::Node> node = osgDB::readRefNodeFile(path);
   if (!node)
     throw Error(fileError(path,
@@ -856,6 +867,7 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
       try {
         ReaderCrashGuard crash_guard(file, tmp);
         injectReadCrash();
+        guard.confineTo(file);
         model = readModel(file);
       } catch (const Error& e) {
         if (!opts.skip_unreadable) throw;

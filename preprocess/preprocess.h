@@ -60,8 +60,9 @@ struct PreprocessStats {
   uint64_t degenerate_triangles = 0;   // with coinciding corners (no pixels): dropped
   uint64_t skipped_drawables = 0;      // drawables that are not triangle geometry
   uint64_t camera_fixed_subtrees = 0;  // under an ABSOLUTE_RF transform (a HUD): skipped
-  uint64_t billboards = 0;    // osg::Billboards: drawn as modelled at each position, not turned
-  uint64_t split_meshes = 0;  // meshes split into clusters
+  uint64_t billboards = 0;  // osg::Billboards: drawn as modelled at each position, not turned
+  uint64_t unloaded_lod_files = 0;  // PagedLOD levels in files, not read (not loaded)
+  uint64_t split_meshes = 0;        // meshes split into clusters
   uint64_t lod_geometries = 0, lod_triangles = 0;  // levels of detail stored
   uint64_t bytes_written = 0;
   uint64_t inputs = 0, skipped_inputs = 0;  // model files read, and skipped as unreadable

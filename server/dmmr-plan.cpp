@@ -3,8 +3,10 @@
 // without MPI or rendering, and writes one CSV row per frame and client
 // count: the server's algorithm measured on its own.
 #include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cstdio>
+#include "cli_options.h"
 
 #include "atomic_file.h"
 #include "error.h"
@@ -23,7 +25,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 4096));
   app.add_option("--width", v.width, "image width")->check(CLI::Range(1, 16384));
   app.add_option("--height", v.height, "image height")->check(CLI::Range(1, 16384));
-  app.add_option("--fovy", v.fovy_deg, "vertical field of view, degrees");
+  app.add_option("--fovy", v.fovy_deg, "vertical field of view, degrees")
+      ->check(dmmr::finiteRange(1.0, 179.0));
   app.add_option("--repeats", repeats, "plans per frame; the median time is kept")
       ->check(CLI::Range(1, 1000));
   app.add_option("--csv", csvFile, "output CSV (default: stdout)");

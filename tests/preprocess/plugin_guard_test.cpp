@@ -3,12 +3,14 @@
 // refused with a warning and the model loads without them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <osg/Geode>
 #include <osg/ProxyNode>
 #include <osg/ShapeDrawable>
 #include <osg/Texture2D>
+#include <osgDB/ReadFile>
 #include <osgDB/Registry>
 #include <osgDB/WriteFile>
 
@@ -83,6 +85,67 @@ TEST(PluginGuard, AModelReferencingAUrlAndAScriptLoadsWithoutThem) {
   EXPECT_FALSE(std::filesystem::exists(dir / "pwned"));
   Scene scene = loadScene(o.out);
   EXPECT_EQ(scene.manifest.objects, 1u) << "the box still loads";
+}
+
+// Files a model names are read only from its directory or below: an OBJ's
+// mtllib and texture outside it (by a relative or an absolute path), and a
+// ProxyNode's model outside it, are refused with a warning naming them; the
+// same files beside the model are read. /dev/zero as an mtllib (which hung
+// the read) is refused as not a regular file.
+TEST(PluginGuard, FilesOutsideTheModelsDirectoryAreNotRead) {
+  TempDir dir;
+  std::filesystem::create_directories(dir / "model");
+  std::filesystem::create_directories(dir / "outside");
+  osg::ref_ptr<osg::Image> image = new osg::Image;
+  image->allocateImage(2, 2, 1, GL_RGBA, GL_UNSIGNED_BYTE);
+  std::fill(image->data(), image->data() + 16, 128);
+  for (const char* png : {"outside/t.png", "model/t.png"})
+    ASSERT_TRUE(osgDB::writeImageFile(*image, dir / png));
+  for (const char* mtl : {"outside/m.mtl", "model/m.mtl"})
+    std::ofstream(dir / mtl) << "newmtl skin\nKd 1 1 1\nmap_Kd t.png\n";
+  std::ofstream(dir / "model/absolute.mtl")
+      << "newmtl skin\nmap_Kd " << (dir / "outside/t.png") << "\n";
+  const std::string quad =
+      "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+      "usemtl skin\nf 1/1 2/2 3/3 4/4\n";
+  std::ofstream(dir / "model/out.obj") << "mtllib ../outside/m.mtl\n" << quad;
+  std::ofstream(dir / "model/abs.obj") << "mtllib absolute.mtl\n" << quad;
+  std::ofstream(dir / "model/zero.obj") << "mtllib /dev/zero\n" << quad;
+  std::ofstream(dir / "model/in.obj") << "mtllib m.mtl\n" << quad;
+  auto run = [&](const std::string& model, const std::string& out, std::string* err) {
+    PreprocessOptions o;
+    o.inputs = {dir / model};
+    o.out = dir / out;
+    o.progress = false;
+    testing::internal::CaptureStderr();
+    PreprocessStats st = preprocess(o);
+    *err = testing::internal::GetCapturedStderr();
+    return st;
+  };
+  std::string err;
+  EXPECT_EQ(run("model/in.obj", "s-in", &err).textures, 1u) << "beside the model: read";
+  EXPECT_EQ(run("model/out.obj", "s-out", &err).textures, 0u);
+  EXPECT_NE(err.find("refused to read '../outside/m.mtl'"), std::string::npos) << err;
+  EXPECT_NE(err.find("outside the model's directory"), std::string::npos) << err;
+  EXPECT_EQ(run("model/abs.obj", "s-abs", &err).textures, 0u);
+  EXPECT_NE(err.find("outside/t.png"), std::string::npos) << err;
+  EXPECT_EQ(run("model/zero.obj", "s-zero", &err).textures, 0u);
+  EXPECT_NE(err.find("refused to read '/dev/zero'"), std::string::npos) << err;
+
+  osg::ref_ptr<osg::Group> root = new osg::Group;
+  auto* proxy = new osg::ProxyNode;
+  proxy->setFileName(0, "../outside/box.osgb");
+  proxy->setLoadingExternalReferenceMode(osg::ProxyNode::LOAD_IMMEDIATELY);
+  root->addChild(proxy);
+  auto* geode = new osg::Geode;
+  geode->addDrawable(new osg::ShapeDrawable(new osg::Box({0, 0, 0}, 1)));
+  root->addChild(geode);
+  osg::ref_ptr<osg::Geode> far = new osg::Geode;
+  far->addDrawable(new osg::ShapeDrawable(new osg::Box({5, 0, 0}, 1)));
+  ASSERT_TRUE(osgDB::writeNodeFile(*far, dir / "outside/box.osgb"));
+  ASSERT_TRUE(osgDB::writeNodeFile(*root, dir / "model/proxy.osgt"));
+  EXPECT_EQ(run("model/proxy.osgt", "s-proxy", &err).objects, 1u) << "the outside box is not read";
+  EXPECT_NE(err.find("../outside/box.osgb"), std::string::npos) << err;
 }
 
 TEST(PluginGuard, AnInputInAFormatOutsideTheListIsRefused) {

@@ -14,6 +14,7 @@
 #include <osg/Geometry>
 #include <osg/Material>
 #include <osg/MatrixTransform>
+#include <osg/PagedLOD>
 #include <osg/Texture2D>
 #include <osgDB/ReadFile>
 #include <osgDB/WriteFile>
@@ -372,6 +373,19 @@ TEST(Preprocess, ColoursPerPrimitiveSetColourTheirSetsTriangles) {
     EXPECT_EQ(c[0], t < 3 ? 255 : 0) << t;
     EXPECT_EQ(c[1], t < 3 ? 0 : 255) << t;
   }
+}
+
+// A PagedLOD's levels in files are not read (a viewer pages them in); the
+// loaded child is taken and the files counted for the warning.
+TEST(Preprocess, PagedLodLevelsInFilesAreCounted) {
+  TempDir dir;
+  osg::ref_ptr<osg::PagedLOD> lod = new osg::PagedLOD;
+  lod->addChild(cube(), 100, 1e30);
+  lod->setFileName(1, "fine.osgb");
+  lod->setRange(1, 0, 100);
+  PreprocessStats st = run({writeModel(dir, lod.get(), "paged.osgb")}, dir / "scene");
+  EXPECT_EQ(st.unloaded_lod_files, 1u);
+  EXPECT_EQ(st.objects, 1u);
 }
 
 TEST(Preprocess, TrianglesWithCoincidingCornersAreDroppedAndCounted) {
