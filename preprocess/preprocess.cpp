@@ -845,7 +845,9 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
   if (opts.out.empty()) throw Error("no output directory given");
   fs::path out = fs::path(opts.out).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();
-  if (fs::exists(out))
+  // symlink_status: a dangling link is there too (renaming onto it at the
+  // end failed after all the work).
+  if (fs::symlink_status(out).type() != fs::file_type::not_found)
     throw Error(fileError(out.string(), "output already exists; remove it or choose another"));
   auto t0 = Clock::now();  // reading the models counts toward throughput
   std::vector<std::string> files = expandInputs(opts.inputs);
@@ -880,6 +882,9 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
       w.endInput(file);
     }
     w.endRoot(root);
+    if (skipped == files.size())
+      throw Error("every input was skipped as unreadable (" + std::to_string(skipped) +
+                  "): nothing to preprocess");
     w.finish(&stats);
   } catch (...) {
     std::error_code ec;

@@ -388,6 +388,18 @@ TEST(Directories, AnUnreadableModelFailsUnlessSkipped) {
   EXPECT_EQ(st.inputs, 2u);
   EXPECT_EQ(st.skipped_inputs, 1u);
   EXPECT_EQ(st.triangles, 24u);
+  // Every input skipped: said so, not "no triangles".
+  fs::create_directories(dir / "broken");
+  writeText(dir / "broken/x.gltf", "{ not json");
+  testing::internal::CaptureStderr();
+  e = dmmr::test::errorOf([&] { run({dir / "broken"}, dir / "s3", true); });
+  testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(has(e, "every input was skipped as unreadable (1)")) << e;
+  EXPECT_FALSE(fs::exists(dir / "s3"));
+  // A dangling symbolic link at the output is refused before any work.
+  fs::create_symlink(dir / "nowhere", dir / "link");
+  e = errorOf({dir / "parts"}, dir / "link");
+  EXPECT_TRUE(has(e, "output already exists")) << e;
 }
 
 // Inputs are read, traversed and released one at a time, and a later input
