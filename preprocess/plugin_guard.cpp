@@ -152,9 +152,10 @@ PluginGuard::~PluginGuard() {
   osgDB::Registry::instance()->setFindFileCallback(previous_find_.get());
 }
 
-void PluginGuard::confineTo(const std::string& model) {
+void PluginGuard::confineTo(const std::string& model, const std::string& root) {
   std::error_code ec;
-  std::filesystem::path dir = std::filesystem::canonical(model, ec).parent_path();
+  std::filesystem::path dir = root.empty() ? std::filesystem::canonical(model, ec).parent_path()
+                                           : std::filesystem::canonical(root, ec);
   find_->root = ec ? std::string() : dir.string();
 }
 

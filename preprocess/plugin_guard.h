@@ -46,13 +46,14 @@ class PluginGuard {
   PluginGuard& operator=(const PluginGuard&) = delete;
   uint64_t refused() const;  // reads refused so far
   // From now on, every file OSG looks for (findDataFile: the model, an OBJ's
-  // mtllib, textures, a ProxyNode's model) must be a regular file in the
-  // directory of `model` or below; anything else is refused with a warning
+  // mtllib, textures, a ProxyNode's model) must be a regular file in `root`
+  // (a directory input the model was found under) or, when `root` is empty,
+  // the directory of `model`, or below; anything else is refused with a warning
   // naming it, as if it were missing (so OSG's search of the working
   // directory and OSG_FILE_PATH finds nothing outside either). A FIFO or a
   // device (an OBJ naming /dev/zero as its mtllib hung the read) is refused
   // too.
-  void confineTo(const std::string& model);
+  void confineTo(const std::string& model, const std::string& root = "");
 
  private:
   class Callback;

@@ -701,13 +701,19 @@ void SceneWriter::finish(PreprocessStats* stats) {
 // Inputs as files: a directory stands for every model file (modelReaderFor)
 // in it and its subdirectories, sorted by path so the scene does not depend
 // on the order the file system lists them; hidden entries are skipped.
-std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
+// `roots` (one per file): the directory a file's references must stay in,
+// the directory input it was found under ("" for a file given itself: its
+// own directory), so that a model may name files elsewhere in the tree the
+// user gave (an OBJ in obj/ naming ../textures/t.png).
+std::vector<std::string> expandInputs(const std::vector<std::string>& inputs,
+                                      std::vector<std::string>* roots) {
   std::vector<std::string> files;
   for (const auto& in : inputs) {
     std::error_code ec;
     if (!fs::exists(in, ec)) throw Error(fileError(in, "no such file"));
     if (!fs::is_directory(in, ec)) {
       files.push_back(in);
+      roots->push_back("");
       continue;
     }
     std::vector<std::string> found;
@@ -732,6 +738,7 @@ std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
                             "see docs/scene-format.md)"));
     std::sort(found.begin(), found.end());
     files.insert(files.end(), found.begin(), found.end());
+    roots->insert(roots->end(), found.size(), in);
   }
   return files;
 }
@@ -850,7 +857,8 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
   if (fs::symlink_status(out).type() != fs::file_type::not_found)
     throw Error(fileError(out.string(), "output already exists; remove it or choose another"));
   auto t0 = Clock::now();  // reading the models counts toward throughput
-  std::vector<std::string> files = expandInputs(opts.inputs);
+  std::vector<std::string> roots;
+  std::vector<std::string> files = expandInputs(opts.inputs, &roots);
 
   fs::path tmp = out;
   tmp += ".partial-" + std::to_string(::getpid());
@@ -864,12 +872,13 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
     // One input in memory at a time: read, traverse, release. Peak memory
     // is the largest input plus the writer's per-object metadata.
     uint32_t root = w.beginRoot();
-    for (const auto& file : files) {
+    for (size_t k = 0; k < files.size(); ++k) {
+      const std::string& file = files[k];
       osg::ref_ptr<osg::Node> model;
       try {
         ReaderCrashGuard crash_guard(file, tmp);
         injectReadCrash();
-        guard.confineTo(file);
+        guard.confineTo(file, roots[k]);
         model = readModel(file);
       } catch (const Error& e) {
         if (!opts.skip_unreadable) throw;

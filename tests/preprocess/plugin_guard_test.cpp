@@ -129,6 +129,9 @@ TEST(PluginGuard, FilesOutsideTheModelsDirectoryAreNotRead) {
   EXPECT_NE(err.find("outside the model's directory"), std::string::npos) << err;
   EXPECT_EQ(run("model/abs.obj", "s-abs", &err).textures, 0u);
   EXPECT_NE(err.find("outside/t.png"), std::string::npos) << err;
+  // Given the directory above both, the model may name files in that tree.
+  EXPECT_GE(run(".", "s-tree", &err).textures, 2u) << err;
+  EXPECT_EQ(err.find("refused to read '../outside/m.mtl'"), std::string::npos) << err;
   EXPECT_EQ(run("model/zero.obj", "s-zero", &err).textures, 0u);
   EXPECT_NE(err.find("refused to read '/dev/zero'"), std::string::npos) << err;
 
