@@ -9,6 +9,7 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -201,11 +202,19 @@ class StrictConfig : public CLI::ConfigTOML {
         fail(n, key + ": an array without its closing ]");
       }
       const CLI::Option* o = app_->get_option_no_throw("--" + key);
+      // The command line was parsed first: an option it set keeps its value.
+      if (o && o->count() == 0) applied_.insert(key);
       if (o && o->get_expected_max() == 0 && value != "true" && value != "false")
         fail(n, key + ": a switch takes true or false, not " + value);
     }
   }
   const CLI::App* app_;
+  mutable std::set<std::string> applied_;
+
+ public:
+  // The keys whose values came from the file (the command line did not set
+  // them), once it has been read: exitParse names the file in their errors.
+  const std::set<std::string>& applied() const { return applied_; }
 };
 
 inline void addConfigOption(CLI::App& app) {
@@ -217,8 +226,21 @@ inline void addConfigOption(CLI::App& app) {
 // app.exit(e) for a parse error, but an error in the run config names the
 // config file (CLI11's own message does not).
 inline int exitParse(CLI::App& app, const CLI::ParseError& e) {
-  if (dynamic_cast<const CLI::ConfigError*>(&e)) {
-    std::string file = app.get_config_ptr() ? app.get_config_ptr()->as<std::string>() : "";
+  std::string file = app.get_config_ptr() && app.get_config_ptr()->count()
+                         ? app.get_config_ptr()->as<std::string>()
+                         : "";
+  bool from_file = dynamic_cast<const CLI::ConfigError*>(&e) != nullptr;
+  // A bad value the run config gave ("--width: Value abc not in range"):
+  // CLI11 names the option, not where its value came from.
+  if (auto cfg = std::dynamic_pointer_cast<StrictConfig>(app.get_config_formatter());
+      cfg && !file.empty()) {
+    const std::string what = e.what();
+    for (const std::string& key : cfg->applied())
+      if (what.find("--" + key + ":") != std::string::npos ||
+          what.find("--" + key + " ") != std::string::npos)
+        from_file = true;
+  }
+  if (from_file) {
     std::fprintf(stderr, "%s: %s: %s\n", app.get_name().c_str(), file.c_str(), e.what());
     return 1;
   }

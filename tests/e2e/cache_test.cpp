@@ -216,6 +216,7 @@ TEST(CacheOptions, AMalformedConfigIsRefusedNamingTheFileAndLine) {
       {"width = 64\nwidth = 65\n", "line 2: width set again (first on line 1)"},
       {"no-progress = \"maybe\"\n", "line 1: no-progress: a switch takes true or false"},
       {"# a comment\nwidth 64\n", "line 2: expected NAME = VALUE"},
+      {"width = \"abc\"\n", "--width"},  // a bad value, named with the file
   };
   int k = 0;
   for (const auto& [text, want] : cases) {
