@@ -2,6 +2,7 @@
 // An INPUT is a model file or a directory of them (read recursively).
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <utility>
 
 #include "cli_options.h"
 #include "error.h"
@@ -60,39 +61,28 @@ int main(int argc, char** argv) {
                    "coordinates and the %llu triangles using them\n",
                    (unsigned long long)s.nonfinite_vertices,
                    (unsigned long long)s.dropped_triangles);
-    if (s.bad_index_triangles)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: dropped %llu triangles naming a vertex their mesh "
-                   "does not have\n",
-                   (unsigned long long)s.bad_index_triangles);
-    if (s.camera_fixed_subtrees)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: skipped %llu subtrees under ABSOLUTE_RF transforms "
-                   "(fixed to the camera, like a HUD: not part of the model)\n",
-                   (unsigned long long)s.camera_fixed_subtrees);
-    if (s.unloaded_lod_files)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: %llu PagedLOD levels in files were not read (only "
-                   "the levels loaded with the model are taken)\n",
-                   (unsigned long long)s.unloaded_lod_files);
-    if (s.billboards)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: %llu billboards are drawn as modelled at their "
-                   "positions, not turned to face the eye\n",
-                   (unsigned long long)s.billboards);
-    if (s.degenerate_triangles)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: dropped %llu degenerate triangles (corners that "
-                   "coincide: they cover no pixel)\n",
-                   (unsigned long long)s.degenerate_triangles);
-    if (s.skipped_inputs)
-      std::fprintf(stderr, "dmmr-preprocess: warning: skipped %llu unreadable inputs\n",
-                   (unsigned long long)s.skipped_inputs);
-    if (s.skipped_drawables)
-      std::fprintf(stderr,
-                   "dmmr-preprocess: warning: skipped %llu drawables without triangle "
-                   "geometry\n",
-                   (unsigned long long)s.skipped_drawables);
+    // What was left out, one line each when it happened.
+    const std::pair<uint64_t, const char*> warnings[] = {
+        {s.bad_index_triangles, "dropped %llu triangles naming a vertex their mesh does not have"},
+        {s.camera_fixed_subtrees,
+         "skipped %llu subtrees under ABSOLUTE_RF transforms (fixed to the camera, like a HUD: "
+         "not part of the model)"},
+        {s.unloaded_lod_files,
+         "%llu PagedLOD levels in files were not read (only the levels loaded with the model are "
+         "taken)"},
+        {s.billboards,
+         "%llu billboards are drawn as modelled at their positions, not turned to face the eye"},
+        {s.degenerate_triangles,
+         "dropped %llu degenerate triangles (corners that coincide: they cover no pixel)"},
+        {s.skipped_inputs, "skipped %llu unreadable inputs"},
+        {s.skipped_drawables, "skipped %llu drawables without triangle geometry"},
+    };
+    for (const auto& [count, what] : warnings) {
+      if (!count) continue;
+      std::fprintf(stderr, "dmmr-preprocess: warning: ");
+      std::fprintf(stderr, what, (unsigned long long)count);
+      std::fprintf(stderr, "\n");
+    }
     std::printf(
         "%s: %llu inputs, %llu objects, %llu geometries, %llu textures, %llu occluders, %llu "
         "triangles "

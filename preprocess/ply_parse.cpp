@@ -128,7 +128,6 @@ class Parser {
 
   PlyMesh parse() {
     readHeader();
-    vertex_count_ = 0;
     for (const Element& e : elements_)
       if (e.name == "vertex") vertex_count_ = e.count;
     for (const Element& e : elements_) {
@@ -240,7 +239,6 @@ class Parser {
       }
     }
     if (!have_format) fail("the header has no format line");
-    header_lines_ = line;
     in_.line = line + 1;
     bool has_vertex = false;
     for (const Element& e : elements_) {
@@ -292,41 +290,31 @@ class Parser {
     if (swap) std::reverse(b, b + n);
     switch (t) {
       case Type::Int8:
-        return double(static_cast<int8_t>(b[0]));
+        return load<int8_t>(b);
       case Type::UInt8:
-        return double(b[0]);
-      case Type::Int16: {
-        int16_t v;
-        std::memcpy(&v, b, 2);
-        return v;
-      }
-      case Type::UInt16: {
-        uint16_t v;
-        std::memcpy(&v, b, 2);
-        return v;
-      }
-      case Type::Int32: {
-        int32_t v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case Type::UInt32: {
-        uint32_t v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case Type::Float32: {
-        float v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case Type::Float64: {
-        double v;
-        std::memcpy(&v, b, 8);
-        return v;
-      }
+        return load<uint8_t>(b);
+      case Type::Int16:
+        return load<int16_t>(b);
+      case Type::UInt16:
+        return load<uint16_t>(b);
+      case Type::Int32:
+        return load<int32_t>(b);
+      case Type::UInt32:
+        return load<uint32_t>(b);
+      case Type::Float32:
+        return load<float>(b);
+      case Type::Float64:
+        return load<double>(b);
     }
     return 0;
+  }
+
+  // A value of type T from its bytes, already in this machine's order.
+  template <typename T>
+  static double load(const unsigned char* b) {
+    T v;
+    std::memcpy(&v, b, sizeof(T));
+    return double(v);
   }
 
   double asciiValue(Type t, const Element& e, uint64_t item) {
@@ -507,7 +495,6 @@ class Parser {
   std::vector<Element> elements_;
   uint64_t vertex_count_ = 0;
   uint64_t header_bytes_ = 0;
-  long header_lines_ = 0;
   PlyMesh mesh_;
 };
 

@@ -811,7 +811,10 @@ osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (fs::is_directory(path)) throw Error(fileError(path, "is a directory, not a model"));
   if (modelReaderFor(path) == ModelReader::Assimp) return readWithAssimp(path);
   if (modelReaderFor(path) == ModelReader::Ply) return readPly(path);
-  if (fs::path(path).extension() == ".obj" || fs::path(path).extension() == ".OBJ") {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".obj") {
     std::ifstream in(path);
     checkObjIndices(in, path);
   }
