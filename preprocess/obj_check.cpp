@@ -30,13 +30,36 @@ void checkObjIndices(std::istream& in, const std::string& name) {
       return line.compare(i, len, w) == 0 && (i + len == line.size() || line[i + len] == ' ' ||
                                               line[i + len] == '\t' || line[i + len] == '\r');
     };
-    if (word("v")) {
-      ++count[0];
+    // The words after the keyword, up to a comment.
+    auto words = [&](size_t keyword) {
+      size_t k = 0;
+      for (size_t at = i + keyword;;) {
+        at = line.find_first_not_of(" \t\r", at);
+        if (at == std::string::npos || line[at] == '#') return k;
+        ++k;
+        at = line.find_first_of(" \t\r#", at);
+        if (at == std::string::npos) return k;
+      }
+    };
+    // A line cut short (a file truncated mid-line) that OSG's plugin takes
+    // quietly: a face of two vertices becomes a line, which no triangle
+    // comes of, and a position of one or two numbers gets zeros.
+    if (word("v") || word("vn")) {
+      const size_t k = words(word("v") ? 1 : 2);
+      if (k < 3)
+        throw Error(fileError(name, n,
+                              std::string(word("v") ? "a vertex position" : "a normal") + " of " +
+                                  std::to_string(k) +
+                                  " coordinates (3 needed); is the file cut short?"));
+      ++count[word("v") ? 0 : 2];
     } else if (word("vt")) {
       ++count[1];
-    } else if (word("vn")) {
-      ++count[2];
     } else if (word("f") || word("l") || word("p")) {
+      const size_t k = words(1);
+      if (word("f") && k < 3)
+        throw Error(fileError(name, n,
+                              "a face of " + std::to_string(k) +
+                                  " vertices (3 or more needed); is the file cut short?"));
       size_t at = i + 1;
       while (at < line.size()) {
         while (at < line.size() && (line[at] == ' ' || line[at] == '\t' || line[at] == '\r')) ++at;

@@ -14,7 +14,10 @@ namespace dmmr {
 // coordinate or normal index that is 0, that lies past the file's count of
 // that kind (positive indices: the whole file's `v`, `vt`, `vn` lines;
 // negative ones: those before the element, as the format counts them back),
-// or that is not a number.
+// or that is not a number; and when a face has fewer than 3 vertices or a
+// v or vn line fewer than 3 coordinates (a line cut short, which OSG's
+// plugin would take quietly: a two-vertex face as a line, which gives no
+// triangle).
 void checkObjIndices(std::istream& in, const std::string& name);
 
 }  // namespace dmmr
