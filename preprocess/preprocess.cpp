@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <osg/Billboard>
 #include <osg/Geode>
@@ -25,6 +26,7 @@
 #include <osg/Transform>
 #include <osg/TriangleIndexFunctor>
 #include <osgDB/ReadFile>
+#include <sstream>
 #include <tuple>
 #include <unordered_map>
 
@@ -790,8 +792,32 @@ void injectReadCrash() {
   if (spec && std::strcmp(spec, "preprocess-read-crash") == 0) ::raise(SIGSEGV);
 }
 
-// Partial scene directories of `out` (OUT.partial-PID) whose process is gone:
-// left by a run that was killed or whose reader crashed.
+// When process `pid` started, in clock ticks since boot (/proc/PID/stat's
+// 22nd field), or 0 when unknown. With the PID it names a process for good:
+// a PID is reused, a PID and its start time are not (until a reboot, which
+// ends every run anyway).
+uint64_t processStartTicks(long pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  size_t paren = stat.rfind(')');  // the command name may hold spaces and parentheses
+  if (paren == std::string::npos) return 0;
+  std::istringstream fields(stat.substr(paren + 1));
+  std::string field;
+  for (int k = 3; k <= 22 && fields >> field; ++k)
+    if (k == 22) return std::strtoull(field.c_str(), nullptr, 10);
+  return 0;
+}
+
+}  // namespace
+
+std::string partialSuffix(long pid) {
+  return ".partial-" + std::to_string(pid) + "-" + std::to_string(processStartTicks(pid));
+}
+
+// Partial scene directories of `out` (OUT.partial-PID-START, or
+// OUT.partial-PID from older runs) whose process is gone, or whose PID now
+// belongs to a process that started at another time: left by a run that was
+// killed or whose reader crashed.
 void removeStalePartials(const fs::path& out) {
   std::error_code ec;
   fs::path dir = out.parent_path().empty() ? fs::path(".") : out.parent_path();
@@ -801,10 +827,22 @@ void removeStalePartials(const fs::path& out) {
     if (name.rfind(prefix, 0) != 0) continue;
     char* end = nullptr;
     long pid = std::strtol(name.c_str() + prefix.size(), &end, 10);
-    if (pid <= 0 || *end != '\0') continue;
-    if (::kill(pid_t(pid), 0) == -1 && errno == ESRCH) fs::remove_all(e.path(), ec);
+    if (pid <= 0) continue;
+    uint64_t start = 0;  // 0: not in the name (an older run) or unknown to it
+    if (*end == '-') {
+      char* end2 = nullptr;
+      start = std::strtoull(end + 1, &end2, 10);
+      if (end2 == end + 1 || *end2 != '\0') continue;
+    } else if (*end != '\0') {
+      continue;
+    }
+    bool gone = ::kill(pid_t(pid), 0) == -1 && errno == ESRCH;
+    uint64_t now = gone ? 0 : processStartTicks(pid);
+    if (gone || (start != 0 && now != 0 && now != start)) fs::remove_all(e.path(), ec);
   }
 }
+
+namespace {
 
 osg::ref_ptr<osg::Node> readModel(const std::string& path) {
   if (!fs::exists(path)) throw Error(fileError(path, "no such file"));
@@ -864,7 +902,7 @@ PreprocessStats preprocess(const PreprocessOptions& opts) {
   std::vector<std::string> files = expandInputs(opts.inputs, &roots);
 
   fs::path tmp = out;
-  tmp += ".partial-" + std::to_string(::getpid());
+  tmp += partialSuffix(::getpid());
   fs::remove_all(tmp);
   removeStalePartials(out);
   PreprocessStats stats;

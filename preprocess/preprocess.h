@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,16 @@ struct PreprocessStats {
 // Throws Error naming the input or output and what is wrong; never leaves a
 // partial scene at `out`.
 PreprocessStats preprocess(const PreprocessOptions& opts);
+
+// A run writes its scene to OUT + partialSuffix(its PID) and renames it to
+// OUT when done: ".partial-PID-START", START the process's start time, so
+// that a later run can tell the PID's process from another that got the
+// same PID (exposed for tests).
+std::string partialSuffix(long pid);
+// Removes OUT's partial directories whose run is gone: no process has the
+// PID, or the process with it started at another time (a reused PID).
+// Directories of older runs (OUT.partial-PID) go only when the PID is free.
+void removeStalePartials(const std::filesystem::path& out);
 
 // The occluder criterion above, over plain data (exposed for tests).
 std::vector<uint32_t> selectOccluders(const std::vector<ObjectBounds>& objects,

@@ -2,6 +2,9 @@
 // the real models beside the checkout.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cstring>
 
 #include <algorithm>
@@ -281,6 +284,37 @@ TEST(PreprocessCli, AReaderCrashNamesTheFileAndTheNextRunCleansUp) {
   EXPECT_EQ(status, 0) << out;
   for (const auto& e : fs::directory_iterator(dir.path()))
     EXPECT_NE(e.path().filename().string().rfind("scene.partial-", 0), 0u) << e.path();
+}
+
+// A partial directory names its run by PID and start time, so that a
+// later run removes it when the PID is free or now belongs to a process that
+// started at another time (a reused PID), and keeps a live run's.
+TEST(Preprocess, StalePartialsAreToldFromLiveRunsByPidAndStartTime) {
+  TempDir dir;
+  const fs::path out = dir / "scene";
+  const long self = long(::getpid());
+  pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  const std::string live = dmmr::partialSuffix(self);
+  ASSERT_EQ(live.rfind(".partial-" + std::to_string(self) + "-", 0), 0u) << live;
+  ASSERT_NE(live, ".partial-" + std::to_string(self) + "-0") << "this process's start time read";
+  const std::string reused = ".partial-" + std::to_string(self) + "-1";  // another start
+  const std::string dead = ".partial-" + std::to_string(child) + "-77";
+  const std::string old_live = ".partial-" + std::to_string(self);
+  const std::string old_dead = ".partial-" + std::to_string(child);
+  const std::string other = ".partial-notapid";
+  for (const std::string& suffix : {live, reused, dead, old_live, old_dead, other})
+    fs::create_directories(out.string() + suffix + "/objects");
+  dmmr::removeStalePartials(out);
+  EXPECT_TRUE(fs::exists(out.string() + live)) << "a live run's";
+  EXPECT_FALSE(fs::exists(out.string() + reused)) << "its PID now names another process";
+  EXPECT_FALSE(fs::exists(out.string() + dead));
+  EXPECT_TRUE(fs::exists(out.string() + old_live)) << "an older name: kept while the PID lives";
+  EXPECT_FALSE(fs::exists(out.string() + old_dead));
+  EXPECT_TRUE(fs::exists(out.string() + other)) << "not a partial name";
 }
 
 // Textures sharing one image but wrapping differently are separate texture
