@@ -30,42 +30,35 @@ void checkObjIndices(std::istream& in, const std::string& name) {
       return line.compare(i, len, w) == 0 && (i + len == line.size() || line[i + len] == ' ' ||
                                               line[i + len] == '\t' || line[i + len] == '\r');
     };
-    // The words after the keyword, up to a comment.
-    auto words = [&](size_t keyword) {
-      size_t k = 0;
-      for (size_t at = i + keyword;;) {
-        at = line.find_first_not_of(" \t\r", at);
-        if (at == std::string::npos || line[at] == '#') return k;
-        ++k;
-        at = line.find_first_of(" \t\r#", at);
-        if (at == std::string::npos) return k;
-      }
-    };
     // A line cut short (a file truncated mid-line) that OSG's plugin takes
-    // quietly: a face of two vertices becomes a line, which no triangle
-    // comes of, and a position of one or two numbers gets zeros.
-    if (word("v") || word("vn")) {
-      const size_t k = words(word("v") ? 1 : 2);
-      if (k < 3)
-        throw Error(fileError(name, n,
-                              std::string(word("v") ? "a vertex position" : "a normal") + " of " +
-                                  std::to_string(k) +
-                                  " coordinates (3 needed); is the file cut short?"));
-      ++count[word("v") ? 0 : 2];
-    } else if (word("vt")) {
-      ++count[1];
+    // quietly: a position of one or two numbers gets zeros, and a face of
+    // two vertices becomes a line, which no triangle comes of (checked
+    // below, as its references are read).
+    const int listed = word("v") ? 0 : word("vt") ? 1 : word("vn") ? 2 : -1;  // count[] index
+    if (listed >= 0) {
+      if (listed != 1) {  // the numbers after the keyword, up to a comment
+        size_t k = 0;
+        for (size_t at = i + (listed == 0 ? 1 : 2);; ++k) {
+          at = line.find_first_not_of(" \t\r", at);
+          if (at == std::string::npos || line[at] == '#') break;
+          at = line.find_first_of(" \t\r#", at);
+        }
+        if (k < 3)
+          throw Error(fileError(name, n,
+                                std::string(listed == 0 ? "a vertex position" : "a normal") +
+                                    " of " + std::to_string(k) +
+                                    " coordinates (3 needed); is the file cut short?"));
+      }
+      ++count[listed];
     } else if (word("f") || word("l") || word("p")) {
-      const size_t k = words(1);
-      if (word("f") && k < 3)
-        throw Error(fileError(name, n,
-                              "a face of " + std::to_string(k) +
-                                  " vertices (3 or more needed); is the file cut short?"));
+      size_t refs = 0;
       size_t at = i + 1;
       while (at < line.size()) {
         while (at < line.size() && (line[at] == ' ' || line[at] == '\t' || line[at] == '\r')) ++at;
         if (at >= line.size() || line[at] == '#') break;
         size_t end = line.find_first_of(" \t\r#", at);
         if (end == std::string::npos) end = line.size();
+        ++refs;
         // "a", "a/b", "a//c", "a/b/c"
         int kind = 0;
         for (size_t p = at; p <= end && kind < 3; ++kind) {
@@ -90,6 +83,10 @@ void checkObjIndices(std::istream& in, const std::string& name) {
         }
         at = end;
       }
+      if (word("f") && refs < 3)
+        throw Error(fileError(name, n,
+                              "a face of " + std::to_string(refs) +
+                                  " vertices (3 or more needed); is the file cut short?"));
     }
   }
   for (const Ref& r : positive)
