@@ -991,7 +991,7 @@ class StageControl {
     if (culled)
       g_.culled(c);
     else
-      g_.unculled();
+      g_.unculled(c.region_triangles);
   }
 
  private:

@@ -75,7 +75,7 @@ double CullingGovernor::net(const CullCost& c) {
 void CullingGovernor::culled(const CullCost& c) {
   // Frames culled before the pause began are recorded during it (the
   // stages run frames ahead of each other): they must not extend it.
-  if (off_left_ > 0) return;
+  if (off_left_ > 0 || c.region_triangles == 0) return;
   if (net(c) >= 0) {
     bad_ = 0;
     bad_region_ = 0;
@@ -99,7 +99,8 @@ void CullingGovernor::region(uint64_t triangles) {
   }
 }
 
-void CullingGovernor::unculled() {
+void CullingGovernor::unculled(uint64_t region_triangles) {
+  if (region_triangles == 0) return;
   // Back on with full patience: the first frame after a pause decides
   // against a stale occluder set and costs more than culling will.
   if (off_left_ > 0 && --off_left_ == 0) bad_ = 0;
@@ -107,6 +108,7 @@ void CullingGovernor::unculled() {
 }
 
 void CullingGovernor::probed(const CullCost& c) {
+  if (c.region_triangles == 0) return;  // nothing to learn; the next frame probes
   since_probe_ = 0;
   if (off_left_ == 0) return;
   if (net(c) < 0) {  // a probe that does not pay is a frame that did not: its region counts

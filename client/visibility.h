@@ -185,11 +185,16 @@ class CullingGovernor {
   // Whether this unculled frame should be probed: during a pause, once
   // probe_every frames have passed since it began or since the last probe.
   bool probes() const { return off_left_ > 0 && since_probe_ >= probe_every_; }
-  // After a frame that culled.
+  // After a frame that culled. A frame whose region holds no triangles is
+  // not counted: nothing can be saved or lost there, and under tiles such
+  // empty regions (background) paused culling for the full tiles after
+  // them (docs/benchmarks.md, "Empty tiles and the cost model").
   void culled(const CullCost& c);
-  // After a frame that did not.
-  void unculled();
-  // A probe's estimate of culling the frame: ends the pause when it pays.
+  // After a frame that did not, whose region holds `region_triangles`
+  // (not counted when 0, as above).
+  void unculled(uint64_t region_triangles);
+  // A probe's estimate of culling the frame: ends the pause when it pays
+  // (not counted when its region holds no triangles).
   void probed(const CullCost& c);
   // Before a frame is decided: its region's triangles (every object of its
   // list). A pause was decided on regions where drawing everything was cheap

@@ -294,6 +294,8 @@ namespace {
 CullCost cost(double decide, double draw, uint64_t drawn, uint64_t region) {
   return CullCost{decide, draw, drawn, region};
 }
+// An unculled frame's region: any size but 0 (not counted).
+constexpr uint64_t kRegion = 1000;
 
 TEST(CullingGovernor, KeepsCullingWhileItPays) {
   CullingGovernor g(4, 16, 3);
@@ -315,7 +317,7 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   for (int round = 0; round < 5; ++round) {
     int off = 0;
     while (!g.culls()) {
-      g.unculled();
+      g.unculled(kRegion);
       ++off;
     }
     pauses.push_back(off);
@@ -326,7 +328,7 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   }
   EXPECT_EQ(pauses, (std::vector<int>{4, 8, 16, 16, 16}));
   // A probe that pays keeps culling on and resets the pause.
-  while (!g.culls()) g.unculled();
+  while (!g.culls()) g.unculled(kRegion);
   g.culled(cost(1, 10, 10, 100000));
   EXPECT_TRUE(g.culls());
   g.culled(bad);
@@ -335,7 +337,7 @@ TEST(CullingGovernor, StopsAfterPatienceThenProbesWithGrowingPauses) {
   g.culled(bad);
   int off = 0;
   while (!g.culls()) {
-    g.unculled();
+    g.unculled(kRegion);
     ++off;
   }
   EXPECT_EQ(off, 4);
@@ -352,7 +354,7 @@ TEST(CullingGovernor, APauseEndsWhenTheRegionGrowsManyTimesOver) {
   ASSERT_FALSE(g.culls());
   g.region(2000 * CullingGovernor::kRegrowth);  // grown, but not past the bound
   EXPECT_FALSE(g.culls());
-  g.unculled();
+  g.unculled(kRegion);
   g.region(2000 * CullingGovernor::kRegrowth + 1);
   EXPECT_TRUE(g.culls()) << "a region past kRegrowth times the pause's ends it";
   // Full patience again: two bad frames do not pause, the third does.
@@ -363,7 +365,7 @@ TEST(CullingGovernor, APauseEndsWhenTheRegionGrowsManyTimesOver) {
   EXPECT_FALSE(g.culls());
   // A probe that does not pay counts its region: this pause ends only past
   // kRegrowth times the probe's larger region.
-  for (int f = 0; f < 4; ++f) g.unculled();
+  for (int f = 0; f < 4; ++f) g.unculled(kRegion);
   ASSERT_TRUE(g.probes());
   g.probed(cost(20, 100, 9990, 10000));
   EXPECT_FALSE(g.culls());
@@ -386,24 +388,24 @@ TEST(CullingGovernor, ProbesEveryFewFramesOfAPauseAndAProbeThatPaysEndsIt) {
   std::vector<bool> due;
   for (int f = 0; f < 4; ++f) {
     due.push_back(g.probes());
-    g.unculled();
+    g.unculled(kRegion);
   }
   EXPECT_EQ(due, (std::vector<bool>{false, false, false, false}));
   EXPECT_TRUE(g.probes()) << "the pause's 5th frame";
   g.probed(bad);  // would not pay: the pause goes on, the next probe 4 frames on
   EXPECT_FALSE(g.culls());
-  g.unculled();
+  g.unculled(kRegion);
   EXPECT_FALSE(g.probes());
-  for (int f = 0; f < 3; ++f) g.unculled();
+  for (int f = 0; f < 3; ++f) g.unculled(kRegion);
   EXPECT_TRUE(g.probes());
   g.probed(good);
   EXPECT_TRUE(g.culls()) << "a probe that pays ends the pause";
   EXPECT_FALSE(g.probes());
-  g.unculled();  // the probed frame itself was drawn in full
+  g.unculled(kRegion);  // the probed frame itself was drawn in full
   EXPECT_TRUE(g.culls());
   // A hook's pause is probed the same way.
   g.pauseFor(100);
-  for (int f = 0; f < 4; ++f) g.unculled();
+  for (int f = 0; f < 4; ++f) g.unculled(kRegion);
   EXPECT_TRUE(g.probes());
 }
 
@@ -415,10 +417,37 @@ TEST(CullingGovernor, FramesCulledAheadOfAPauseDoNotExtendIt) {
   for (int k = 0; k < 2; ++k) g.culled(bad);  // still in the pipeline when it stopped
   int off = 0;
   while (!g.culls()) {
-    g.unculled();
+    g.unculled(kRegion);
     ++off;
   }
   EXPECT_EQ(off, 4);
+}
+
+// Under tiles many of a client's jobs are background: a region without
+// triangles says nothing about culling, so it neither starts, lengthens,
+// shortens nor probes a pause, nor breaks a run of frames that did not pay.
+TEST(CullingGovernor, FramesOfEmptyRegionsAreNotCounted) {
+  CullingGovernor g(4, 64, 3, 2);
+  CullCost bad = cost(20, 100, 990, 1000), empty = cost(0.5, 0, 0, 0);
+  EXPECT_LT(CullingGovernor::net(empty), 0) << "counted, it would not pay";
+  for (int k = 0; k < 10; ++k) g.culled(empty);
+  EXPECT_TRUE(g.culls()) << "empty regions started a pause";
+  g.culled(bad);
+  g.culled(bad);
+  g.culled(empty);  // does not end the run of bad frames either
+  g.culled(bad);
+  ASSERT_FALSE(g.culls());
+  for (int k = 0; k < 100; ++k) g.unculled(0);
+  EXPECT_FALSE(g.culls()) << "empty regions used up the pause";
+  g.unculled(kRegion);
+  g.unculled(kRegion);
+  ASSERT_TRUE(g.probes());
+  g.probed(cost(1, 10, 0, 0));  // an empty region's probe: not counted
+  EXPECT_TRUE(g.probes()) << "the probe is still due";
+  EXPECT_FALSE(g.culls());
+  g.unculled(kRegion);
+  g.unculled(kRegion);
+  EXPECT_TRUE(g.culls()) << "the pause of 4 counted frames is over";
 }
 
 TEST(CullingGovernor, ANothingDrawnFramePaysWhenTheRegionHadTriangles) {
