@@ -5,7 +5,8 @@
 # skullmesh4, issue 15's four 2.5M-triangle skull meshes in clusters, at
 # 512x512 along walkthroughs/skullmesh4.path, 48 frames a turn, and
 # skullmesh4-192, the same orbit in 192 frames: walkthroughs/skullmesh4-192.path,
-# of which every fourth point is skullmesh4.path's), with 1 client (the base of
+# of which every fourth point is skullmesh4.path's; skullmesh4-whole, the same
+# meshes preprocessed unsplit, --cluster-triangles 0), with 1 client (the base of
 # efficiency, default options) and with each count in DMMR_BENCH_CLIENTS
 # (default "4 16").
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
@@ -43,6 +44,12 @@ scene_of() {
         -o out/bench/skullmesh4.scene --no-progress >/dev/null
       sc=out/bench/skullmesh4.scene path=walkthroughs/skullmesh4.path w=512 h=512
       if [ "$1" = skullmesh4-192 ]; then path=walkthroughs/skullmesh4-192.path; fi
+      ;;
+    skullmesh4-whole) # the same meshes unsplit: issue 15's "without clustering"
+      scene_of skullmesh4
+      [ -d out/bench/skullmesh4-whole.scene ] || $bin/dmmr-preprocess out/bench/skullmesh4.osgb \
+        -o out/bench/skullmesh4-whole.scene --cluster-triangles 0 --no-progress >/dev/null
+      sc=out/bench/skullmesh4-whole.scene
       ;;
     plants4 | plants8)
       scene "$1" replicate --of plant --copies "${1#plants}" --triangles 400000 --geodes 5000 \

@@ -176,6 +176,8 @@ INSTANTIATE_TEST_SUITE_P(
         TileCase{"static3", 3, "--balance tiles-static --tile 32x32"},
         TileCase{"interleaved3", 3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
         TileCase{"onetile2", 2, "--balance tiles-static --tile 200x200"},
+        // The shipped run config for big meshes: its tiles, from the file.
+        TileCase{"bigmeshes3", 3, "--config " DMMR_SOURCE_DIR "/configs/big-meshes.toml"},
         TileCase{"dynamic3w1", 3, "--balance tiles-dynamic --tile 32x32 --tiles-in-flight 1"},
         TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"}),
     [](const auto& info) { return info.param.name; });
