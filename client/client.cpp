@@ -932,7 +932,8 @@ class StageControl {
  public:
   StageControl(bool governor, StageMode stages) : enabled_(governor), stages_(stages) {
     // Test hook: DMMR_CULL_PAUSE=N starts the run with culling paused for N
-    // jobs, so that only the cost model's probes can turn it back on.
+    // jobs (of those with triangles), so that only the cost model's probes
+    // can turn it back on.
     if (const char* pause = std::getenv("DMMR_CULL_PAUSE"))
       g_.pauseFor(uint32_t(std::strtoul(pause, nullptr, 10)));
   }
@@ -1191,7 +1192,11 @@ class RenderStage {
     };
     const double cpu_draw0 = threadCpuMs();
     const uint64_t region_tris = regionTriangles(scene_, job.objects);
-    bool fused_culled = v.fused && control_.culls(region_tris), culled = v.culled || fused_culled;
+    // A job with nothing to draw (a background tile) is neither culled nor
+    // probed: there is nothing to save, and the cost model does not count it.
+    const bool empty = region_tris == 0;
+    bool fused_culled = v.fused && !empty && control_.culls(region_tris),
+         culled = v.culled || fused_culled;
     Decision fused;
     double probe_ms = 0;   // the cost model's probe, when it paused culling
     double fused_cpu = 0;  // drawFused's CPU time
@@ -1206,8 +1211,8 @@ class RenderStage {
       st.visible = fused.visible.size();
       st.triangles = fused.triangles;
     } else {
-      bool probe = v.fused && control_.probes();
-      if (v.fused && !probe)
+      bool probe = v.fused && !empty && control_.probes();
+      if (v.fused && !probe && !empty)
         culler_->skip(job);
       else if (!v.fused && culler_)
         culler_->adopt(job, v.visible);  // a split frame of --stages auto

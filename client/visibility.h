@@ -183,7 +183,8 @@ class CullingGovernor {
         off_len_(min_off) {}
   bool culls() const { return off_left_ == 0; }
   // Whether this unculled frame should be probed: during a pause, once
-  // probe_every frames have passed since it began or since the last probe.
+  // probe_every counted frames (unculled() with triangles) have passed
+  // since it began or since the last probe.
   bool probes() const { return off_left_ > 0 && since_probe_ >= probe_every_; }
   // After a frame that culled. A frame whose region holds no triangles is
   // not counted: nothing can be saved or lost there, and under tiles such
@@ -203,7 +204,7 @@ class CullingGovernor {
   // the pause ends there instead of drawing it all blind until a probe.
   void region(uint64_t triangles);
   static constexpr double kRegrowth = 4;
-  // Starts a pause of `frames` frames as if culling had not paid (the test
+  // Starts a pause of `frames` counted frames as if culling had not paid (the test
   // hook DMMR_CULL_PAUSE starts a client's run so), decided on regions of
   // `triangles` (0: region() never ends it).
   void pauseFor(uint32_t frames, uint64_t triangles = 0) {

@@ -150,6 +150,10 @@ int main(int argc, char** argv) {
                  "tiles-dynamic or auto (chosen from the measured link)")
       ->check(CLI::IsMember({"frustum", "tiles-static", "tiles-dynamic", "auto"}));
   app.add_option("--tile", tile, "tile size WxH for the tile strategies (e.g. 128x128)");
+  app.add_option("--tiles-per-client", s.tiles_per_client,
+                 "tile strategies: size the tiles to cut each frame into about N tiles a "
+                 "client, whatever its size (0: --tile's size)")
+      ->check(CLI::Range(0, 4096));
   app.add_option("--tile-order", tileOrder,
                  "tiles-static dealing: rows (round-robin) or interleaved (diagonals)")
       ->check(CLI::IsMember({"rows", "interleaved"}));

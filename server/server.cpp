@@ -834,7 +834,10 @@ int runServer(Comm& comm, const ServerOptions& opts) {
         for (Region& part : plan.pool)  // to whichever client is free first
           jobs.push_back({-1, makeJob(part.rect, std::move(part.objects))});
       } else {
-        TilePlan plan = planner.planTiles(cam, v.width, v.height, opts.tile_w, opts.tile_h);
+        int tile_w = opts.tile_w, tile_h = opts.tile_h;
+        if (opts.tiles_per_client > 0)
+          gridTileSize(v.width, v.height, clients * opts.tiles_per_client, &tile_w, &tile_h);
+        TilePlan plan = planner.planTiles(cam, v.width, v.height, tile_w, tile_h);
         rec.cull_ms = plan.cull_ms;
         rec.divide_ms = plan.divide_ms;
         rec.plan_cpu_ms = plan.plan_cpu_ms;

@@ -77,6 +77,9 @@ struct ServerOptions {
   // tile_window tiles in flight per client; auto measures the link at start.
   Balance balance = Balance::Frustum;
   int tile_w = 128, tile_h = 128;
+  // Above 0: the tiles' size instead cuts each frame into about this many
+  // tiles a client (gridTileSize).
+  int tiles_per_client = 0;
   TileOrder tile_order = TileOrder::Rows;
   int tile_window = 2;
   // Interactive mode (serve.h): poses from viewers instead of the

@@ -1,6 +1,7 @@
 #include "tiles.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "error.h"
 
@@ -84,6 +85,15 @@ void TilePool::done(int client, uint32_t tile) {
 int TilePool::owner(uint32_t tile) const {
   DMMR_CHECK(tile >= base_ && tile < size());
   return owner_[tile - base_];
+}
+
+void gridTileSize(int width, int height, int tiles, int* tile_w, int* tile_h) {
+  DMMR_CHECK(width >= 1 && height >= 1 && tiles >= 1);
+  double columns = std::round(std::sqrt(double(tiles) * width / height));
+  int cols = int(std::clamp(columns, 1.0, double(std::min(width, tiles))));
+  int rows = std::clamp((tiles + cols - 1) / cols, 1, height);
+  *tile_w = (width + cols - 1) / cols;
+  *tile_h = (height + rows - 1) / rows;
 }
 
 bool parseTileSize(const std::string& text, int* w, int* h) {

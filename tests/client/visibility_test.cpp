@@ -434,11 +434,13 @@ TEST(CullingGovernor, FramesOfEmptyRegionsAreNotCounted) {
   EXPECT_TRUE(g.culls()) << "empty regions started a pause";
   g.culled(bad);
   g.culled(bad);
-  g.culled(empty);  // does not end the run of bad frames either
+  g.culled(empty);  // neither ends the run of bad frames nor counts in it
+  EXPECT_TRUE(g.culls()) << "an empty region counted as the third bad frame";
   g.culled(bad);
   ASSERT_FALSE(g.culls());
   for (int k = 0; k < 100; ++k) g.unculled(0);
   EXPECT_FALSE(g.culls()) << "empty regions used up the pause";
+  EXPECT_FALSE(g.probes()) << "empty regions counted towards a probe";
   g.unculled(kRegion);
   g.unculled(kRegion);
   ASSERT_TRUE(g.probes());

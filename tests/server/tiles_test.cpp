@@ -46,6 +46,38 @@ TEST(MakeTiles, CoverEveryFrameShapeExactly) {
   EXPECT_TRUE(makeTiles({0, 0, 0, 0}, 32, 32).empty());
 }
 
+TEST(GridTileSize, FollowsTheFrameSize) {
+  auto size = [](int w, int h, int tiles) {
+    std::pair<int, int> s;
+    gridTileSize(w, h, tiles, &s.first, &s.second);
+    return s;
+  };
+  EXPECT_EQ(size(512, 512, 64), std::pair(64, 64));  // 4 clients x 16
+  EXPECT_EQ(size(1024, 1024, 64), std::pair(128, 128));
+  EXPECT_EQ(size(1024, 768, 64), std::pair(114, 96));  // 9 x 8 tiles
+  EXPECT_EQ(size(300, 200, 1), std::pair(300, 200));   // one tile: the frame
+  EXPECT_EQ(size(1, 1, 1000), std::pair(1, 1));        // more tiles than pixels
+  EXPECT_EQ(size(4096, 2, 64), std::pair(64, 2));      // a strip: one row
+}
+
+// Fixed seed: over frames of aspect up to 4 and at least 64 pixels a tile,
+// the tiles number 0.75x-1.5x what was asked and are at most 2:1.
+TEST(GridTileSize, AboutTheTilesAskedNearSquareOnRandomFrames) {
+  std::mt19937 rng(1607);
+  int checked = 0;
+  while (checked < 20000) {
+    int w = 16 + int(rng() % 4081), h = 16 + int(rng() % 4081), tiles = 16 + int(rng() % 1009);
+    if (int64_t(tiles) * 64 > int64_t(w) * h || std::max(w, h) > 4 * std::min(w, h)) continue;
+    ++checked;
+    int tw = 0, th = 0;
+    gridTileSize(w, h, tiles, &tw, &th);
+    size_t n = makeTiles({0, 0, w, h}, tw, th).size();
+    ASSERT_GE(double(n), 0.75 * tiles) << w << "x" << h << " " << tiles;
+    ASSERT_LE(double(n), 1.5 * tiles) << w << "x" << h << " " << tiles;
+    ASSERT_LE(std::max(tw, th), 2 * std::min(tw, th)) << w << "x" << h << " " << tiles;
+  }
+}
+
 TEST(DealTiles, RowsIsThePapersRoundRobin) {
   auto d = dealTiles(7, 3, 3, TileOrder::Rows);
   EXPECT_EQ(d[0], (Ids{0, 3, 6}));
