@@ -9,6 +9,8 @@
 # meshes preprocessed unsplit, --cluster-triangles 0), with 1 client (the base of
 # efficiency, default options) and with each count in DMMR_BENCH_CLIENTS
 # (default "4 16").
+# DMMR_BENCH_WH=WxH renders every scene at that size instead (use its own
+# DMMR_BENCH_OUT: the references are kept there by scene name).
 # DMMR_BENCH_CONFIGS lists the option sets as "label:options;label:options"
 # (default: the weights visible and fitted, each without and with the cost
 # grid); options beginning with @DIR run DIR/dmmr-render (another build's bin
@@ -63,6 +65,7 @@ scene_of() {
       ;;
     *) echo "division_ab.sh: unknown scene $1" >&2 && exit 1 ;;
   esac
+  if [ -n "${DMMR_BENCH_WH:-}" ]; then w=${DMMR_BENCH_WH%x*} h=${DMMR_BENCH_WH#*x}; fi
 }
 
 for s in $scenes; do
