@@ -182,6 +182,27 @@ INSTANTIATE_TEST_SUITE_P(
         TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"}),
     [](const auto& info) { return info.param.name; });
 
+// --tiles-per-client sizes the tiles from the frame, over --tile: with 16
+// tiles where --tile alone gives one, objects that straddle tiles are
+// listed once per tile they meet, so the client's summed lists grow; the
+// frames stay the reference's.
+TEST(TilesPerClient, CutsTheFrameWhateverTheTileOption) {
+  SmallScene& s = smallScene();
+  auto objects = [&](const std::string& name, const std::string& options) {
+    std::string out = s.dir / name;
+    s.render(1, out,
+             "--balance tiles-static --tile 200x200 " + options + " --stats " + out + ".csv");
+    for (const FrameDiff& d : compareDirectories(s.reference, out))
+      EXPECT_EQ(d.diff.differing_pixels, 0) << name << " " << d.name << " " << d.diff;
+    double sum = 0;
+    for (const auto& row : test::readCsv(out + ".csv")) sum += row.at("c1_objects");
+    return sum;
+  };
+  double one = objects("tpc_one", ""), sixteen = objects("tpc_sixteen", "--tiles-per-client 16");
+  EXPECT_GT(one, 0);
+  EXPECT_GT(sixteen, one) << "--tiles-per-client 16 left the frame one tile";
+}
+
 // --balance auto on a walkthrough long enough for its trial (1 + 3 x 3
 // frames): each strategy is timed, one is kept, and every frame, trial
 // frames included, equals the reference.
