@@ -1030,13 +1030,17 @@ class VisibilityStage {
     VisibleJob out;
     out.stats.objects = job.objects.size();
     bool here = culler_ && control_.mode(job.frame) != StageMode::Fused;
-    if (!here || !control_.culls(regionTriangles(scene_, job.objects))) {
+    // A job with nothing to draw (a background tile) is not culled here
+    // either, nor counted as a skip: the render stage draws its empty list.
+    const uint64_t region_tris = regionTriangles(scene_, job.objects);
+    const bool empty = here && region_tris == 0;
+    if (!here || empty || !control_.culls(region_tris)) {
       // The render stage gets the whole list: it culls (fused stages), or
       // nothing does (no culling, or the cost model paused it).
-      if (here)
-        culler_->skip(job);
-      else
+      if (!here)
         out.fused = opts_.method != VisibilityMethod::Off;
+      else if (!empty)
+        culler_->skip(job);
       out.visible = job.objects;
       out.stats.visible = out.visible.size();
       out.job = std::move(job);

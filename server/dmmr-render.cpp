@@ -152,7 +152,7 @@ int main(int argc, char** argv) {
   app.add_option("--tile", tile, "tile size WxH for the tile strategies (e.g. 128x128)");
   app.add_option("--tiles-per-client", s.tiles_per_client,
                  "tile strategies: size the tiles to cut each frame into about N tiles a "
-                 "client, whatever its size (0: --tile's size)")
+                 "client, whatever its size (0, or --tile given: --tile's size)")
       ->check(CLI::Range(0, 4096));
   app.add_option("--tile-order", tileOrder,
                  "tiles-static dealing: rows (round-robin) or interleaved (diagonals)")
@@ -314,6 +314,9 @@ int main(int argc, char** argv) {
   c.codec = dmmr::parseCodec(codec);
   dmmr::parseBalance(balance, &s.balance);  // checked by CLI11 above
   s.tile_order = tileOrder == "rows" ? dmmr::TileOrder::Rows : dmmr::TileOrder::Interleaved;
+  // A tile size given wins, so that `--config configs/big-meshes.toml
+  // --tile 32x32` means 32x32 tiles.
+  if (app.count("--tile") > 0) s.tiles_per_client = 0;
   if (!dmmr::parseTileSize(tile, &s.tile_w, &s.tile_h)) {
     if (!quiet)
       std::fprintf(stderr, "dmmr-render: --tile %s: expected WxH with W, H from 1 to 16384\n",

@@ -174,6 +174,8 @@ INSTANTIATE_TEST_SUITE_P(
     Balance, Tiles,
     testing::Values(
         TileCase{"static3", 3, "--balance tiles-static --tile 32x32"},
+        // Split stages: background tiles skip the visibility stage's pass.
+        TileCase{"split3", 3, "--balance tiles-static --tile 32x32 --stages split"},
         TileCase{"interleaved3", 3, "--balance tiles-static --tile 50x40 --tile-order interleaved"},
         TileCase{"onetile2", 2, "--balance tiles-static --tile 200x200"},
         // The shipped run config for big meshes: its tiles, from the file.
@@ -182,25 +184,28 @@ INSTANTIATE_TEST_SUITE_P(
         TileCase{"dynamic3w4", 3, "--balance tiles-dynamic --tile 50x40 --tiles-in-flight 4"}),
     [](const auto& info) { return info.param.name; });
 
-// --tiles-per-client sizes the tiles from the frame, over --tile: with 16
-// tiles where --tile alone gives one, objects that straddle tiles are
-// listed once per tile they meet, so the client's summed lists grow; the
-// frames stay the reference's.
-TEST(TilesPerClient, CutsTheFrameWhateverTheTileOption) {
+// --tiles-per-client sizes the tiles from the frame: 16 of them where the
+// default 128x128 tile gives 2 of this 160x120 frame, so that objects
+// straddling tiles are listed once per tile they meet and the client's
+// summed lists grow. A --tile given wins over it (a run config's
+// --tiles-per-client, a command line's --tile). Frames stay the reference's.
+TEST(TilesPerClient, CutsTheFrameUnlessATileSizeIsGiven) {
   SmallScene& s = smallScene();
   auto objects = [&](const std::string& name, const std::string& options) {
     std::string out = s.dir / name;
-    s.render(1, out,
-             "--balance tiles-static --tile 200x200 " + options + " --stats " + out + ".csv");
+    s.render(1, out, "--balance tiles-static " + options + " --stats " + out + ".csv");
     for (const FrameDiff& d : compareDirectories(s.reference, out))
       EXPECT_EQ(d.diff.differing_pixels, 0) << name << " " << d.name << " " << d.diff;
     double sum = 0;
     for (const auto& row : test::readCsv(out + ".csv")) sum += row.at("c1_objects");
     return sum;
   };
-  double one = objects("tpc_one", ""), sixteen = objects("tpc_sixteen", "--tiles-per-client 16");
+  double one = objects("tpc_one", "--tile 200x200");
+  double sixteen = objects("tpc_sixteen", "--tiles-per-client 16");
+  double given = objects("tpc_given", "--tiles-per-client 16 --tile 200x200");
   EXPECT_GT(one, 0);
-  EXPECT_GT(sixteen, one) << "--tiles-per-client 16 left the frame one tile";
+  EXPECT_GT(sixteen, one) << "--tiles-per-client 16 left the frame in few tiles";
+  EXPECT_EQ(given, one) << "--tile did not win over --tiles-per-client";
 }
 
 // --balance auto on a walkthrough long enough for its trial (1 + 3 x 3
