@@ -1032,7 +1032,7 @@ class VisibilityStage {
     bool here = culler_ && control_.mode(job.frame) != StageMode::Fused;
     // A job with nothing to draw (a background tile) is not culled here
     // either, nor counted as a skip: the render stage draws its empty list.
-    const uint64_t region_tris = regionTriangles(scene_, job.objects);
+    const uint64_t region_tris = here ? regionTriangles(scene_, job.objects) : 0;
     const bool empty = here && region_tris == 0;
     if (!here || empty || !control_.culls(region_tris)) {
       // The render stage gets the whole list: it culls (fused stages), or

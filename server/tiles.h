@@ -83,10 +83,10 @@ class TilePool {
 // `tiles` (>= 1) tiles, as near square as a grid of columns x rows with
 // columns / rows near width / height allows: columns = round(sqrt(tiles *
 // width / height)) within 1 and min(width, tiles), rows = ceil(tiles /
-// columns) within 1 and height, and the tile size is the frame's side over each, rounded
-// up. So the tile size follows the frame's size and the client count
-// (--tiles-per-client) where a fixed --tile would give a 1024x1024 frame
-// four times the tiles of a 512x512 one.
+// columns) within 1 and height, and the tile size is the frame's side over
+// each, rounded up. So the tile size follows the frame's size and the
+// client count (--tiles-per-client) where a fixed --tile would give a
+// 1024x1024 frame four times the tiles of a 512x512 one.
 void gridTileSize(int width, int height, int tiles, int* tile_w, int* tile_h);
 
 // Parses "WxH" (W, H in 1..16384); false when malformed.
