@@ -252,6 +252,103 @@ def max_over_mean(rows, n, cost=None):
                   for w in ([client_work(r, k, cost) for k in range(1, n + 1)] for r in rows))
 
 
+def client_costs(rows, n, cost=None):
+    """Per row, the list of its n clients' client_work."""
+    return [[client_work(r, k, cost) for k in range(1, n + 1)] for r in rows]
+
+
+# The figures compared between a frame's slowest client and its mean client:
+# key -> (label, per-client value of a row). "pixels" is the region's size
+# (RGB bytes read back / 3).
+SLOWEST_FIGURES = {
+    "objects": ("objects listed", lambda r, k: num(r, f"c{k}_objects")),
+    "queried": ("objects tested", lambda r, k: num(r, f"c{k}_queried")),
+    "visible": ("objects drawn", lambda r, k: num(r, f"c{k}_visible")),
+    "triangles": ("triangles drawn", lambda r, k: num(r, f"c{k}_triangles")),
+    "submitted": ("triangles submitted", lambda r, k: num(r, f"c{k}_submitted")),
+    "pixels": ("pixels", lambda r, k: num(r, f"c{k}_bytes_raw") / 3),
+}
+
+
+def slowest_client_profile(rows, n, cost=None):
+    """What a frame's slowest client did against the frame's mean client.
+
+    For each row, the client of largest client_work is the slowest; each
+    figure of SLOWEST_FIGURES (and "cost" itself) is taken as the slowest
+    client's value over the mean of the n clients' values, and the result is
+    the median of that ratio over the rows where the mean is positive (None
+    where no row has one). A cost ratio well above 1 with count ratios near 1
+    means the slowest client did as much as the others, only slower (noise or
+    a cost the counts do not see); count ratios as high as the cost's mean
+    its region held more of the work than the division planned."""
+    out = {}
+    costs = client_costs(rows, n, cost)
+    slow = [max(range(n), key=lambda i: c[i]) + 1 for c in costs]
+    figures = dict(SLOWEST_FIGURES, cost=("cost", None))
+    for key, (_, fn) in figures.items():
+        ratios = []
+        for r, c, k in zip(rows, costs, slow):
+            vals = c if fn is None else [fn(r, j) for j in range(1, n + 1)]
+            m = sum(vals) / n
+            if m > 0:
+                ratios.append(vals[k - 1] / m)
+        out[key] = median(ratios) if ratios else None
+    return out
+
+
+def share_correlation(rows, n, lag, cost=None):
+    """Pearson correlation of a client's share of a frame's work (its client_work
+    over the frame's mean) with its share `lag` frames later, pooled over the
+    clients and frames. The server plans a frame with the clients' feedback of
+    `in_flight` frames before: at that lag, a correlation near 0 says the
+    feedback cannot tell which client will be slow. None with fewer than three
+    pairs or no spread."""
+    shares = []
+    for c in client_costs(rows, n, cost):
+        m = sum(c) / n
+        shares.append([x / m for x in c] if m > 0 else None)
+    xs, ys = [], []
+    for a, b in zip(shares, shares[lag:]):
+        if a is not None and b is not None:
+            xs += a
+            ys += b
+    if len(xs) < 3:
+        return None
+    mx, my = mean(xs), mean(ys)
+    sxy = sum((x - mx) * (y - my) for x, y in zip(xs, ys))
+    sxx = sum((x - mx) ** 2 for x in xs)
+    syy = sum((y - my) ** 2 for y in ys)
+    return sxy / math.sqrt(sxx * syy) if sxx > 0 and syy > 0 else None
+
+
+def efficiency_parts(base, run):
+    """The derived efficiency tau_1 / (S tau_S) of `run` against the 1-client
+    `base` as an exact product of four factors (each from render_stats):
+
+      one_client = tau_1 / W_1   the 1-client frame over its client's work (>= 1:
+                                 the server's plan and the transfer on top)
+      work       = W_1 / W_S     1 / inflation of the clients' summed work
+      balance    = (W_S / S) / M_S   the mean client over the slowest, per frame
+                                 (means over frames, so not the median max/mean)
+      server     = M_S / tau_S   the slowest client's work over the frame (the
+                                 server's plan and the transfer on top)
+
+    W is the mean over frames of the clients' summed work, M the mean over
+    frames of the largest client's work, tau the derived frame time. None if a
+    figure is missing or zero."""
+    try:
+        t1, w1 = base["derived_frame_ms_mean"], base["client_cost_sum_mean"]
+        ts, ws, ms, s = run["derived_frame_ms_mean"], run["client_cost_sum_mean"], run["client_cost_max_mean"], \
+            run["clients"]
+    except KeyError:
+        return None
+    if min(t1, w1, ts, ws, ms) <= 0:
+        return None
+    parts = {"one_client": t1 / w1, "work": w1 / ws, "balance": ws / s / ms, "server": ms / ts}
+    parts["efficiency"] = t1 / (s * ts)
+    return parts
+
+
 def render_stats(path, clients, in_flight=3):
     rows = read_csv(path)
     n = clients_of(rows[0])
@@ -280,6 +377,14 @@ def render_stats(path, clients, in_flight=3):
                                       if "c1_render_cpu_ms" in rows[0] else None),
         # max over clients / mean over clients of each frame's work, median over frames
         "client_max_over_mean_median": max_over_mean(s, n),
+        # for efficiency_parts: the clients' summed and largest work, means over frames
+        "client_cost_sum_mean": mean(sum(c) for c in client_costs(s, n)),
+        "client_cost_max_mean": mean(max(c) for c in client_costs(s, n)),
+        # what each frame's slowest client did against its mean client, and
+        # whether a client's share repeats 1 frame and in_flight frames later
+        "slowest_client": slowest_client_profile(s, n) if n > 1 else None,
+        "share_correlation": ({1: share_correlation(s, n, 1), in_flight: share_correlation(s, n, in_flight)}
+                              if n > 1 else None),
         "server": {k: mean(num(r, k) for r in s) for k in SERVER_STAGES},
         "objects_in_frustum_mean": mean(num(r, "objects_in_frustum") for r in s),
         "triangles_in_frustum_mean": mean(num(r, "triangles_in_frustum") for r in s),
@@ -423,6 +528,9 @@ def analyse_scene(name, info, configurations, repeats=1):
                 r["clients"] * r["scheduled_user_frame_ms"])
             r["derived_user_efficiency"] = base["derived_user_frame_ms_mean"] / (
                 r["clients"] * r["derived_user_frame_ms_mean"])
+    for r in res["runs"].values():
+        if base and r["plain"] and r is not base:
+            r["efficiency_parts"] = efficiency_parts(base, r)
     # work inflation: each run's work summed over clients against the 1-client run's
     for r in res["runs"].values():
         r["work_sums"] = work_sums(r)

@@ -409,16 +409,51 @@ def inflation_table(scenes):
     return "\n".join(lines) + "\n"
 
 
+def efficiency_table(scenes):
+    """Each run's derived efficiency as the product of analysis.efficiency_parts,
+    then what the frames' slowest client did against their mean client and
+    how a client's share repeats later (analysis.slowest_client_profile,
+    share_correlation)."""
+    from .analysis import SLOWEST_FIGURES
+    keys = list(SLOWEST_FIGURES)
+    lines = ["| scene | clients | efficiency | = 1-client frame / its work | x 1 / inflation | x mean / slowest "
+             "client | x slowest client / frame | slowest / mean client: cost | " +
+             " | ".join(SLOWEST_FIGURES[k][0] for k in keys) +
+             " | share correlation, 1 frame later | in-flight frames later |",
+             "|---|---|" + "---|" * (6 + len(keys) + 2)]
+    shown = False
+    for s in scenes:
+        for r in scaling_runs(s):
+            p, sl, corr = r.get("efficiency_parts"), r.get("slowest_client"), r.get("share_correlation")
+            if not p or not sl:
+                continue
+            shown = True
+            # JSON turns the lags into strings; analysis gives ints
+            corr = {int(k): v for k, v in (corr or {}).items()}
+            lag = r.get("in_flight", 3)
+            lines.append(f"| {s['scene']} | {r['clients']} | {p['efficiency']:.2f} | {p['one_client']:.2f} | "
+                         f"{p['work']:.2f} | {p['balance']:.2f} | {p['server']:.2f} | "
+                         f"{f(sl.get('cost'), '{:.2f}')} | " +
+                         " | ".join(f(sl.get(k), "{:.2f}") for k in keys) +
+                         f" | {f(corr.get(1), '{:.2f}')} | {f(corr.get(lag), '{:.2f}')} ({lag}) |")
+    return "\n".join(lines) + "\n" if shown else ""
+
+
 BREAKDOWN_WALL = ["prepare_ms", "retrieve_ms", "pass_ms", "load_ms", "render_ms", "readback_ms", "compress_ms",
                   "send_ms"]
 
 
-def breakdown_table(s):
-    """Client by client, stage by stage, for the scene's largest client count (the 1-client run's client first)."""
+def breakdown_table(s, clients=None):
+    """Client by client, stage by stage, for the scene's run with `clients`
+    clients (default: its largest client count), the 1-client run's client
+    first. Empty if the scene has no such run."""
     runs = scaling_runs(s)
     if not runs:
         return ""
-    big, one = runs[-1], runs[0]
+    big = runs[-1] if clients is None else next((r for r in runs if r["clients"] == clients), None)
+    one = runs[0]
+    if big is None:
+        return ""
     head = ("| run | client | " + " | ".join(x[:-3] for x in BREAKDOWN_WALL) +
             " | vis CPU | render CPU | cost used | objects tested | objects drawn | triangles | pixels read back |")
     lines = [f"#### {s['scene']}: {big['clients']} clients, per client and stage (ms per frame, means over frames "
@@ -446,6 +481,20 @@ def scaling_section(meta, scenes, checks):
           "brackets that sum over the 1-client run's. Above 1, the clients together do more work than one "
           "client did alone (objects straddling regions tested and drawn by each client whose region they "
           "touch, occluders drawn by every client, per-client fixed costs).", "", inflation_table(scenes)]
+    eff = efficiency_table(scenes)
+    if eff:
+        md += ["### Where the efficiency goes", "",
+               "The derived efficiency tau_1 / (S tau_S) is the product of four factors (means over frames "
+               "1..): the 1-client frame over its client's work (above 1: the server's plan and the transfer "
+               "on top); 1 / the inflation of the clients' summed work; the mean client's work over the "
+               "slowest client's (per frame, then averaged: not the median max/mean of the table above); and "
+               "the slowest client's work over the derived frame (the server's plan and the transfer on top). "
+               "Then, per frame, the slowest client's figures over the frame's mean client's (median over "
+               "frames): where its counts are as high as its cost, its region held more work than the "
+               "division planned; where they are near 1, it did as much as the others, only slower. Last, "
+               "the correlation of a client's share of a frame's work with its share 1 frame and in-flight "
+               "frames later (the server plans with feedback that old): near 0, the feedback cannot tell "
+               "which client will be slow.", "", eff]
     if int(meta.get("repeats", 1) or 1) > 1:
         md += ["### Repeated runs", "",
                f"Each configuration ran {meta['repeats']} times; the figures above are those of the run of median "
@@ -469,12 +518,15 @@ def scaling_section(meta, scenes, checks):
                "250 Hz): over runs of frames of a few milliseconds it is coarse.", "", kernel]
     if any(c["met"] is False for c in checks):
         md += ["### Where the time goes (a target is not met)", "",
-               "The 1-client run's client first, then each client of the largest run. With fused stages (the "
+               "The 1-client run's client first, then each client of the 4-client run and of the largest run. "
+               "With fused stages (the "
                "default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
                "CPU is 0; `pass` and `send` are hand-over waits, and under oversubscription every wall column "
                "includes waiting for a core.", ""]
         for s in scenes:
-            md += [breakdown_table(s), ""]
+            counts = sorted({r["clients"] for r in scaling_runs(s)})
+            for n in ([4] if 4 in counts and counts[-1] != 4 else []) + [None]:
+                md += [breakdown_table(s, n), ""]
     return "\n".join(md) + "\n"
 
 

@@ -87,6 +87,19 @@ for sc in s.get("scenes", []):
             check(all(inf.get(k) in (1.0, None) for k in WORK), f"{name}/1: inflation 1 against itself")
         # each client reads back its own region: the pixels read back sum to one frame whatever n
         check(inf.get("pixels") is not None and abs(inf["pixels"] - 1.0) < 1e-6, f"{name}/{n}: pixels tile the frame")
+        # where the efficiency goes: four factors whose product is the derived efficiency
+        if n > 1:
+            parts = r.get("efficiency_parts") or {}
+            prod = 1.0
+            for k in ("one_client", "work", "balance", "server"):
+                prod *= parts.get(k, float("nan"))
+            check(abs(prod - r["derived_efficiency"]) < 1e-9 * max(1.0, r["derived_efficiency"]),
+                  f"{name}/{n}: the efficiency's factors multiply to it ({parts})")
+            check(0 < parts.get("balance", 0) <= 1 + 1e-12, f"{name}/{n}: the balance factor is at most 1")
+            check(set(r.get("slowest_client") or {}) >= {"cost", "triangles", "pixels"},
+                  f"{name}/{n}: the slowest client's figures")
+            check((r.get("slowest_client") or {}).get("cost", 0) >= 1 - 1e-12,
+                  f"{name}/{n}: the slowest client costs at least the mean")
 
 # every dmmr-render run (repeats included) has its whole-process CPU and page faults
 usage = s.get("run_usage") or {}
@@ -120,6 +133,9 @@ check("| objects tested | objects drawn | triangles drawn |" in md, "the inflati
 if any(c["met"] is False for c in checks):
     check("### Where the time goes" in md and "16 clients, per client and stage" in md,
           "a missed target brings the per-client per-stage breakdown of the largest client count")
+    check("4 clients, per client and stage" in md, "and of the 4-client run")
+check("### Where the efficiency goes" in md and "| share correlation, 1 frame later |" in md,
+      "the report factors the efficiency")
 check("FAIL" not in md, "no accuracy FAIL")
 png = rep / "plots" / "scaling.png"
 check(png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", "plots/scaling.png")
