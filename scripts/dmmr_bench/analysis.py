@@ -277,7 +277,8 @@ def slowest_client_profile(rows, n, cost=None):
     figure of SLOWEST_FIGURES (and "cost" itself) is taken as the slowest
     client's value over the mean of the n clients' values, and the result is
     the median of that ratio over the rows where the mean is positive (None
-    where no row has one). A cost ratio well above 1 with count ratios near 1
+    where no row has one). Rows where every client cost 0 have no slowest
+    client and are left out. A cost ratio well above 1 with count ratios near 1
     means the slowest client did as much as the others, only slower (noise or
     a cost the counts do not see); count ratios as high as the cost's mean
     its region held more of the work than the division planned."""
@@ -288,6 +289,8 @@ def slowest_client_profile(rows, n, cost=None):
     for key, (_, fn) in figures.items():
         ratios = []
         for r, c, k in zip(rows, costs, slow):
+            if max(c) <= 0:
+                continue
             vals = c if fn is None else [fn(r, j) for j in range(1, n + 1)]
             m = sum(vals) / n
             if m > 0:
@@ -300,9 +303,10 @@ def share_correlation(rows, n, lag, cost=None):
     """Pearson correlation of a client's share of a frame's work (its client_work
     over the frame's mean) with its share `lag` frames later, pooled over the
     clients and frames. The server plans a frame with the clients' feedback of
-    `in_flight` frames before: at that lag, a correlation near 0 says the
-    feedback cannot tell which client will be slow. None with fewer than three
-    pairs or no spread."""
+    `in_flight` frames before, and the shares are measured after it acted on
+    that feedback: at that lag, a correlation near 0 says that what its
+    correction leaves is not predictable from shares that old. None with
+    fewer than three pairs or no spread."""
     shares = []
     for c in client_costs(rows, n, cost):
         m = sum(c) / n
@@ -338,8 +342,8 @@ def efficiency_parts(base, run):
     figure is missing or zero."""
     try:
         t1, w1 = base["derived_frame_ms_mean"], base["client_cost_sum_mean"]
-        ts, ws, ms, s = run["derived_frame_ms_mean"], run["client_cost_sum_mean"], run["client_cost_max_mean"], \
-            run["clients"]
+        ts, s = run["derived_frame_ms_mean"], run["clients"]
+        ws, ms = run["client_cost_sum_mean"], run["client_cost_max_mean"]
     except KeyError:
         return None
     if min(t1, w1, ts, ws, ms) <= 0:
@@ -358,6 +362,7 @@ def render_stats(path, clients, in_flight=3):
     ft = [num(r, "frame_ms") for r in s]
     der = [derived_frame(r, n) for r in s]
     derp = [derived_pipelined(r, n) for r in s]
+    costs = client_costs(s, n)
     period, latency = derived_schedule(rows, n, in_flight)
     out = {
         "frames": len(rows), "clients": n,
@@ -378,8 +383,8 @@ def render_stats(path, clients, in_flight=3):
         # max over clients / mean over clients of each frame's work, median over frames
         "client_max_over_mean_median": max_over_mean(s, n),
         # for efficiency_parts: the clients' summed and largest work, means over frames
-        "client_cost_sum_mean": mean(sum(c) for c in client_costs(s, n)),
-        "client_cost_max_mean": mean(max(c) for c in client_costs(s, n)),
+        "client_cost_sum_mean": mean(sum(c) for c in costs),
+        "client_cost_max_mean": mean(max(c) for c in costs),
         # what each frame's slowest client did against its mean client, and
         # whether a client's share repeats 1 frame and in_flight frames later
         "slowest_client": slowest_client_profile(s, n) if n > 1 else None,

@@ -417,7 +417,7 @@ def efficiency_table(scenes):
     from .analysis import SLOWEST_FIGURES
     keys = list(SLOWEST_FIGURES)
     lines = ["| scene | clients | efficiency | = 1-client frame / its work | x 1 / inflation | x mean / slowest "
-             "client | x slowest client / frame | slowest / mean client: cost | " +
+             "client | x slowest client / frame | slowest / mean client: cost (the max/mean above) | " +
              " | ".join(SLOWEST_FIGURES[k][0] for k in keys) +
              " | share correlation, 1 frame later | in-flight frames later |",
              "|---|---|" + "---|" * (6 + len(keys) + 2)]
@@ -486,15 +486,17 @@ def scaling_section(meta, scenes, checks):
         md += ["### Where the efficiency goes", "",
                "The derived efficiency tau_1 / (S tau_S) is the product of four factors (means over frames "
                "1..): the 1-client frame over its client's work (above 1: the server's plan and the transfer "
-               "on top); 1 / the inflation of the clients' summed work; the mean client's work over the "
-               "slowest client's (per frame, then averaged: not the median max/mean of the table above); and "
+               "on top); 1 / the inflation of the clients' summed work; the mean over frames of the mean "
+               "client's work over the mean over frames of the slowest client's (not the median max/mean of "
+               "the table above); and "
                "the slowest client's work over the derived frame (the server's plan and the transfer on top). "
                "Then, per frame, the slowest client's figures over the frame's mean client's (median over "
                "frames): where its counts are as high as its cost, its region held more work than the "
                "division planned; where they are near 1, it did as much as the others, only slower. Last, "
                "the correlation of a client's share of a frame's work with its share 1 frame and in-flight "
-               "frames later (the server plans with feedback that old): near 0, the feedback cannot tell "
-               "which client will be slow.", "", eff]
+               "frames later. The server plans with feedback that old, and the shares are measured after it "
+               "acted on it: near 0, what its correction leaves is not predictable from shares that old.",
+               "", eff]
     if int(meta.get("repeats", 1) or 1) > 1:
         md += ["### Repeated runs", "",
                f"Each configuration ran {meta['repeats']} times; the figures above are those of the run of median "
@@ -518,9 +520,8 @@ def scaling_section(meta, scenes, checks):
                "250 Hz): over runs of frames of a few milliseconds it is coarse.", "", kernel]
     if any(c["met"] is False for c in checks):
         md += ["### Where the time goes (a target is not met)", "",
-               "The 1-client run's client first, then each client of the 4-client run and of the largest run. "
-               "With fused stages (the "
-               "default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
+               "The 1-client run's client first, then each client of the 4-client run (where the suite has "
+               "one) and of the largest run. With fused stages (the default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
                "CPU is 0; `pass` and `send` are hand-over waits, and under oversubscription every wall column "
                "includes waiting for a core.", ""]
         for s in scenes:

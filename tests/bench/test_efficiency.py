@@ -72,27 +72,16 @@ check(share_correlation(alt[:1], 2, 1) is None, "one frame: no pairs, no correla
 even = [row([1.0, 1.0]) for _ in range(6)]
 check(share_correlation(even, 2, 1) is None, "equal shares: no spread, no correlation")
 
-# --- efficiency_parts: the product is the efficiency ---------------------------
-rng = random.Random(16)
-for trial in range(200):
-    s = rng.choice([2, 3, 4, 8, 16])
-    base = {"clients": 1, "derived_frame_ms_mean": rng.uniform(10, 200)}
-    base["client_cost_sum_mean"] = base["derived_frame_ms_mean"] * rng.uniform(0.8, 1.0)
-    run = {"clients": s, "derived_frame_ms_mean": rng.uniform(1, 100)}
-    run["client_cost_max_mean"] = run["derived_frame_ms_mean"] * rng.uniform(0.5, 1.0)
-    run["client_cost_sum_mean"] = run["client_cost_max_mean"] * rng.uniform(1.0, s)
-    p = efficiency_parts(base, run)
-    prod = p["one_client"] * p["work"] * p["balance"] * p["server"]
-    if not close(prod, p["efficiency"]):
-        check(False, f"trial {trial}: product {prod} != efficiency {p['efficiency']}")
-        break
-    if not (p["balance"] <= 1 + 1e-12 and p["server"] <= 1 + 1e-12 and p["one_client"] >= 1 - 1e-12):
-        check(False, f"trial {trial}: a factor out of range {p}")
-        break
+# --- efficiency_parts: missing or zero figures ---------------------------------
 check(efficiency_parts({"clients": 1}, {"clients": 2}) is None, "missing figures: None")
 check(efficiency_parts({"derived_frame_ms_mean": 1, "client_cost_sum_mean": 0},
                        {"clients": 2, "derived_frame_ms_mean": 1, "client_cost_sum_mean": 1,
                         "client_cost_max_mean": 1}) is None, "a zero figure: None")
+
+# --- slowest_client_profile: frames where nobody worked ------------------------
+idle = [row([0.0, 0.0], triangles=[10, 30]), row([1.0, 3.0], triangles=[10, 30])]
+p = slowest_client_profile(idle, 2)
+check(close(p["triangles"], 1.5), f"an idle frame has no slowest client: triangles {p['triangles']} (1.5 expected)")
 
 # --- from CSV rows through render_stats, and the report's table ----------------
 # Two clients alternating 3 / 1 ms (per-frame balance 4/2/3 = 0.667), summed
@@ -110,19 +99,24 @@ with tempfile.TemporaryDirectory() as tmp:
                 w.writerow(r)
         return path
 
-    def full(costs):
+    def full(costs, plan=0.5, sent=None):
         n = len(costs)
         z = [0] * n
-        return row(costs, triangles=[100 * c for c in costs], bytes_raw=[300] * n, objects=z, queried=z,
-                   visible=z, occluders=z, bytes_sent=z, submitted=z)
+        r = row(costs, triangles=[100 * c for c in costs], bytes_raw=[300] * n, objects=z, queried=z,
+                visible=z, occluders=z, bytes_sent=sent or z, submitted=z)
+        r["plan_cpu_ms"] = repr(plan)
+        return r
 
     one = analysis.render_stats(write("c1.csv", [full([3.5]) for _ in range(7)]), 1)
     two = analysis.render_stats(write("c2.csv", [full([3.0, 1.0] if f % 2 else [1.0, 3.0]) for f in range(7)]), 2)
     check(close(one["client_cost_sum_mean"], 3.5), f"1 client: summed work {one['client_cost_sum_mean']}")
     check(close(two["client_cost_max_mean"], 3.0), f"2 clients: largest work {two['client_cost_max_mean']}")
     p = efficiency_parts(one, two)
+    # each frame: plan 0.5 ms, nothing sent; 1 client 0.5 + 3.5, 2 clients 0.5 + 3
+    check(close(p["one_client"], 4.0 / 3.5), f"1-client frame over its work {p['one_client']} (8/7 expected)")
     check(close(p["work"], 3.5 / 4.0), f"1 / inflation {p['work']} (0.875 expected)")
     check(close(p["balance"], 2.0 / 3.0), f"balance {p['balance']} (2/3 expected)")
+    check(close(p["server"], 3.0 / 3.5), f"slowest client over the frame {p['server']} (6/7 expected)")
     check(close(p["efficiency"], one["derived_frame_ms_mean"] / (2 * two["derived_frame_ms_mean"])),
           "efficiency from the derived frame times")
     check(close(two["share_correlation"][1], -1.0), f"render_stats' lag-1 correlation {two['share_correlation']}")
@@ -134,7 +128,33 @@ with tempfile.TemporaryDirectory() as tmp:
     line = next((ln for ln in table.splitlines() if ln.startswith("| alt | 2 |")), "")
     check(" 0.88 | 0.67 |" in line, f"the table's row shows 1 / inflation and balance: {line!r}")
     # alternating shares: anticorrelated at every odd lag, 1 and 3
-check(line.rstrip().endswith("| -1.00 | -1.00 (3) |"), f"the table's row ends with both correlations: {line!r}")
+    check(line.rstrip().endswith("| -1.00 | -1.00 (3) |"), f"the table's row ends with both correlations: {line!r}")
+
+    # Fixed-seed random runs through render_stats, with the server's plan and
+    # the sub-frames' transfer in the derived frame: the four factors multiply
+    # to the efficiency, the 1-client frame is at least its work, the mean
+    # client at most the slowest, and the slowest client's work at most the frame.
+    rng = random.Random(16)
+    for trial in range(60):
+        s_ = rng.choice([2, 3, 4, 8, 16])
+        frames = rng.randint(2, 9)
+        base_rows = [full([rng.uniform(0.1, 80)], plan=rng.uniform(0, 5), sent=[rng.randint(0, 400000)])
+                     for _ in range(frames)]
+        run_rows = [full([rng.choice([0.0, rng.uniform(0.1, 30)]) for _ in range(s_)], plan=rng.uniform(0, 5),
+                         sent=[rng.randint(0, 100000) for _ in range(s_)]) for _ in range(frames)]
+        b = analysis.render_stats(write(f"b{trial}.csv", base_rows), 1)
+        r = analysis.render_stats(write(f"r{trial}.csv", run_rows), s_)
+        p = efficiency_parts(b, r)
+        if p is None:
+            continue  # a run whose clients all cost 0
+        want = b["derived_frame_ms_mean"] / (s_ * r["derived_frame_ms_mean"])
+        prod = p["one_client"] * p["work"] * p["balance"] * p["server"]
+        if not (close(prod, want) and close(p["efficiency"], want)):
+            check(False, f"trial {trial}: product {prod}, efficiency {p['efficiency']}, expected {want}")
+            break
+        if not (p["one_client"] >= 1 - 1e-12 and p["balance"] <= 1 + 1e-12 and p["server"] <= 1 + 1e-12):
+            check(False, f"trial {trial}: a factor out of range {p}")
+            break
 
 if failures:
     print(f"{len(failures)} check(s) failed")
