@@ -270,10 +270,11 @@ SLOWEST_FIGURES = {
 }
 
 
-def slowest_client_profile(rows, n, cost=None):
+def slowest_client_profile(rows, costs):
     """What a frame's slowest client did against the frame's mean client.
 
-    For each row, the client of largest client_work is the slowest; each
+    `costs`: per row, its clients' work (client_costs). For each row, the
+    client of largest work is the slowest; each
     figure of SLOWEST_FIGURES (and "cost" itself) is taken as the slowest
     client's value over the mean of the n clients' values, and the result is
     the median of that ratio over the rows where the mean is positive (None
@@ -283,7 +284,7 @@ def slowest_client_profile(rows, n, cost=None):
     a cost the counts do not see); count ratios as high as the cost's mean
     its region held more of the work than the division planned."""
     out = {}
-    costs = client_costs(rows, n, cost)
+    n = len(costs[0]) if costs else 0
     slow = [max(range(n), key=lambda i: c[i]) + 1 for c in costs]
     figures = dict(SLOWEST_FIGURES, cost=("cost", None))
     for key, (_, fn) in figures.items():
@@ -299,17 +300,18 @@ def slowest_client_profile(rows, n, cost=None):
     return out
 
 
-def share_correlation(rows, n, lag, cost=None):
-    """Pearson correlation of a client's share of a frame's work (its client_work
-    over the frame's mean) with its share `lag` frames later, pooled over the
+def share_correlation(costs, lag):
+    """Pearson correlation of a client's share of a frame's work (its entry of
+    `costs`, per frame its clients' work as client_costs gives it, over the
+    frame's mean) with its share `lag` frames later, pooled over the
     clients and frames. The server plans a frame with the clients' feedback of
     `in_flight` frames before, and the shares are measured after it acted on
     that feedback: at that lag, a correlation near 0 says that what its
     correction leaves is not predictable from shares that old. None with
     fewer than three pairs or no spread."""
     shares = []
-    for c in client_costs(rows, n, cost):
-        m = sum(c) / n
+    for c in costs:
+        m = sum(c) / len(c)
         shares.append([x / m for x in c] if m > 0 else None)
     xs, ys = [], []
     for a, b in zip(shares, shares[lag:]):
@@ -332,8 +334,8 @@ def efficiency_parts(base, run):
       one_client = tau_1 / W_1   the 1-client frame over its client's work (>= 1:
                                  the server's plan and the transfer on top)
       work       = W_1 / W_S     1 / inflation of the clients' summed work
-      balance    = (W_S / S) / M_S   the mean client over the slowest, per frame
-                                 (means over frames, so not the median max/mean)
+      balance    = (W_S / S) / M_S   the mean client over the slowest, each
+                                 a mean over frames (not the median max/mean)
       server     = M_S / tau_S   the slowest client's work over the frame (the
                                  server's plan and the transfer on top)
 
@@ -387,8 +389,8 @@ def render_stats(path, clients, in_flight=3):
         "client_cost_max_mean": mean(max(c) for c in costs),
         # what each frame's slowest client did against its mean client, and
         # whether a client's share repeats 1 frame and in_flight frames later
-        "slowest_client": slowest_client_profile(s, n) if n > 1 else None,
-        "share_correlation": ({1: share_correlation(s, n, 1), in_flight: share_correlation(s, n, in_flight)}
+        "slowest_client": slowest_client_profile(s, costs) if n > 1 else None,
+        "share_correlation": ({1: share_correlation(costs, 1), in_flight: share_correlation(costs, in_flight)}
                               if n > 1 else None),
         "server": {k: mean(num(r, k) for r in s) for k in SERVER_STAGES},
         "objects_in_frustum_mean": mean(num(r, "objects_in_frustum") for r in s),

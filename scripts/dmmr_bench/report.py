@@ -488,8 +488,8 @@ def scaling_section(meta, scenes, checks):
                "1..): the 1-client frame over its client's work (above 1: the server's plan and the transfer "
                "on top); 1 / the inflation of the clients' summed work; the mean over frames of the mean "
                "client's work over the mean over frames of the slowest client's (not the median max/mean of "
-               "the table above); and "
-               "the slowest client's work over the derived frame (the server's plan and the transfer on top). "
+               "the table above); and the slowest client's work over the derived frame (the server's plan "
+               "and the transfer on top). "
                "Then, per frame, the slowest client's figures over the frame's mean client's (median over "
                "frames): where its counts are as high as its cost, its region held more work than the "
                "division planned; where they are near 1, it did as much as the others, only slower. Last, "
@@ -521,7 +521,8 @@ def scaling_section(meta, scenes, checks):
     if any(c["met"] is False for c in checks):
         md += ["### Where the time goes (a target is not met)", "",
                "The 1-client run's client first, then each client of the 4-client run (where the suite has "
-               "one) and of the largest run. With fused stages (the default) the visibility test runs on the render thread, so its CPU time is in render CPU and vis "
+               "one) and of the largest run. With fused stages (the default) the visibility test runs on the "
+               "render thread, so its CPU time is in render CPU and vis "
                "CPU is 0; `pass` and `send` are hand-over waits, and under oversubscription every wall column "
                "includes waiting for a core.", ""]
         for s in scenes:

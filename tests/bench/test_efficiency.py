@@ -45,7 +45,7 @@ def row(costs, **figures):
 # others, its region has as many pixels, and its object list the same size.
 rows = [row([1.0, 2.0, 1.0, 1.0], triangles=[10, 20, 10, 10], bytes_raw=[300, 300, 300, 300],
             objects=[5, 5, 5, 5], visible=[0, 0, 0, 0]) for _ in range(5)]
-p = slowest_client_profile(rows, 4)
+p = slowest_client_profile(rows, analysis.client_costs(rows, 4))
 check(close(p["cost"], 2.0 / 1.25), f"slowest cost over mean {p['cost']} (1.6 expected)")
 check(close(p["triangles"], 20 / 12.5), f"slowest triangles over mean {p['triangles']} (1.6 expected)")
 check(close(p["pixels"], 1.0), f"slowest pixels over mean {p['pixels']} (1 expected)")
@@ -54,23 +54,23 @@ check(p["visible"] is None, f"no frame draws an object: no ratio ({p['visible']}
 check(p["submitted"] is None, f"a figure the CSV lacks has no ratio ({p['submitted']})")
 # The slowest client moves from frame to frame: the ratio follows it.
 rows = [row([3.0, 1.0], triangles=[30, 10]), row([1.0, 3.0], triangles=[10, 30]), row([1.0, 3.0], triangles=[30, 10])]
-p = slowest_client_profile(rows, 2)
+p = slowest_client_profile(rows, analysis.client_costs(rows, 2))
 check(close(p["cost"], 1.5), f"moving slowest client: cost ratio {p['cost']} (1.5 expected)")
 # frames 1 and 2: 1.5; frame 3: the slowest (client 2) drew 10 of a mean 20: 0.5; median 1.5
 check(close(p["triangles"], 1.5), f"moving slowest client: triangles ratio {p['triangles']} (1.5 expected)")
 
 # --- share_correlation --------------------------------------------------------
 # The same client slow every frame: its share repeats exactly at any lag.
-steady_rows = [row([2.0, 1.0, 1.0]) for f in range(9)]
-check(close(share_correlation(steady_rows, 3, 1), 1.0),
-      f"a persistent slow client: correlation {share_correlation(steady_rows, 3, 1)} (1 expected)")
+steady = [[2.0, 1.0, 1.0]] * 9
+check(close(share_correlation(steady, 1), 1.0),
+      f"a persistent slow client: correlation {share_correlation(steady, 1)} (1 expected)")
 # Two clients alternating: shares anticorrelate at lag 1 and repeat at lag 2.
-alt = [row([3.0, 1.0] if f % 2 == 0 else [1.0, 3.0]) for f in range(8)]
-check(close(share_correlation(alt, 2, 1), -1.0), f"alternating, lag 1: {share_correlation(alt, 2, 1)} (-1 expected)")
-check(close(share_correlation(alt, 2, 2), 1.0), f"alternating, lag 2: {share_correlation(alt, 2, 2)} (1 expected)")
-check(share_correlation(alt[:1], 2, 1) is None, "one frame: no pairs, no correlation")
-even = [row([1.0, 1.0]) for _ in range(6)]
-check(share_correlation(even, 2, 1) is None, "equal shares: no spread, no correlation")
+alt = [[3.0, 1.0] if f % 2 == 0 else [1.0, 3.0] for f in range(8)]
+check(close(share_correlation(alt, 1), -1.0), f"alternating, lag 1: {share_correlation(alt, 1)} (-1 expected)")
+check(close(share_correlation(alt, 2), 1.0), f"alternating, lag 2: {share_correlation(alt, 2)} (1 expected)")
+check(share_correlation(alt[:1], 1) is None, "one frame: no pairs, no correlation")
+even = [[1.0, 1.0]] * 6
+check(share_correlation(even, 1) is None, "equal shares: no spread, no correlation")
 
 # --- efficiency_parts: missing or zero figures ---------------------------------
 check(efficiency_parts({"clients": 1}, {"clients": 2}) is None, "missing figures: None")
@@ -80,7 +80,7 @@ check(efficiency_parts({"derived_frame_ms_mean": 1, "client_cost_sum_mean": 0},
 
 # --- slowest_client_profile: frames where nobody worked ------------------------
 idle = [row([0.0, 0.0], triangles=[10, 30]), row([1.0, 3.0], triangles=[10, 30])]
-p = slowest_client_profile(idle, 2)
+p = slowest_client_profile(idle, analysis.client_costs(idle, 2))
 check(close(p["triangles"], 1.5), f"an idle frame has no slowest client: triangles {p['triangles']} (1.5 expected)")
 
 # --- from CSV rows through render_stats, and the report's table ----------------
